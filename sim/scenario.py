@@ -1,0 +1,529 @@
+"""Scenario files: strict YAML loading into frozen specs, then a Problem.
+
+``read_scenario(path)`` parses and checks the file (unknown keys, wrong
+types and impossible values are rejected with a :class:`ScenarioError`
+naming the file, the field and the reason).  ``build_problem(scenario,
+rng)`` turns the spec into a :class:`planner.Problem`: it draws the random
+obstacles, the formations' rotations and centres from ``rng`` and checks
+the placements (robot index and what it hits).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from planner.formations import DEFAULT_COUNTS, formation_shape, place_formation
+from planner.geometry import Environment, segment_segment_distance
+from planner.params import PlannerParams
+from planner.problem import Circle, Polygon, Problem, ProblemError, check_placement
+
+from .params import RenderParams, SimParams
+
+__all__ = [
+    "FormationSpec",
+    "RandomObstacles",
+    "Scenario",
+    "ScenarioError",
+    "build_problem",
+    "read_scenario",
+]
+
+
+class ScenarioError(ValueError):
+    """A bad scenario file: ``str()`` is one line ``FILE: FIELD: reason``."""
+
+    def __init__(self, path: str | Path, field: str, reason: str):
+        self.path = str(path)
+        self.field = field
+        self.reason = reason
+        super().__init__(f"{self.path}: {field}: {reason}")
+
+
+@dataclass(frozen=True)
+class RandomObstacles:
+    """``count`` random convex polygons with diameters in ``size``."""
+
+    count: int
+    size: tuple[float, float]
+    seed: int | None = None
+
+
+@dataclass(frozen=True)
+class FormationSpec:
+    """Either a named formation (with scale, rotation, centre) or explicit points.
+
+    rotation ``None`` and center ``None`` mean random.
+    """
+
+    formation: str | None = None
+    scale: float = 0.3
+    rotation: float | None = None
+    center: tuple[float, float] | None = None
+    points: tuple[tuple[float, float], ...] | None = None
+
+    def describe(self) -> str:
+        return "points" if self.points is not None else str(self.formation)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A checked scenario file.  Lengths in workspace units, speeds in units/s."""
+
+    path: str
+    name: str
+    seed: int
+    width: float
+    height: float
+    radius: float
+    margin: float
+    count: int
+    max_speed: float
+    max_accel: float
+    obstacles: tuple[Polygon | Circle | RandomObstacles, ...]
+    start: FormationSpec
+    target: FormationSpec
+    planner: PlannerParams
+    sim: SimParams
+    render: RenderParams
+
+
+# ----------------------------------------------------------------------------
+# YAML with duplicate keys rejected
+
+
+class _StrictLoader(yaml.SafeLoader):
+    pass
+
+
+def _construct_mapping(loader, node, deep=False):
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r}", key_node.start_mark
+            )
+        seen.add(key)
+    return yaml.SafeLoader.construct_mapping(loader, node, deep)
+
+
+_StrictLoader.add_constructor(
+    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping
+)
+
+
+# ----------------------------------------------------------------------------
+# field readers
+
+
+class _Reader:
+    def __init__(self, path: str):
+        self.path = path
+
+    def fail(self, field: str, reason: str):
+        raise ScenarioError(self.path, field, reason)
+
+    def mapping(self, value, field: str, allowed: tuple[str, ...]) -> dict:
+        if value is None:
+            value = {}
+        if not isinstance(value, dict):
+            self.fail(field, f"must be a mapping, got {_kind(value)}")
+        for key in value:
+            if key not in allowed:
+                hint = ", ".join(allowed)
+                where = f"{field}.{key}" if field else str(key)
+                self.fail(where, f"unknown key (allowed here: {hint})")
+        return value
+
+    def number(self, value, field, *, gt=None, ge=None, le=None) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(field, f"must be a number, got {_kind(value)}")
+        value = float(value)
+        if not math.isfinite(value):
+            self.fail(field, f"must be finite, got {value}")
+        if gt is not None and not value > gt:
+            self.fail(field, f"must be > {gt:g}, got {value:g}")
+        if ge is not None and not value >= ge:
+            self.fail(field, f"must be >= {ge:g}, got {value:g}")
+        if le is not None and not value <= le:
+            self.fail(field, f"must be <= {le:g}, got {value:g}")
+        return value
+
+    def integer(self, value, field, *, ge=None) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(field, f"must be an integer, got {_kind(value)}")
+        if ge is not None and value < ge:
+            self.fail(field, f"must be an integer >= {ge}, got {value}")
+        return int(value)
+
+    def int_or_auto(self, value, field, *, ge=1) -> int | None:
+        if value == "auto":
+            return None
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(field, f"must be an integer >= {ge} or 'auto', got {_kind(value)}")
+        return self.integer(value, field, ge=ge)
+
+    def boolean(self, value, field) -> bool:
+        if not isinstance(value, bool):
+            self.fail(field, f"must be true or false, got {_kind(value)}")
+        return value
+
+    def pair(self, value, field, *, positive=False) -> tuple[float, float]:
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            self.fail(field, f"must be a pair [x, y], got {_kind(value)}")
+        kw = {"gt": 0.0} if positive else {}
+        return (
+            self.number(value[0], f"{field}[0]", **kw),
+            self.number(value[1], f"{field}[1]", **kw),
+        )
+
+
+def _kind(value: Any) -> str:
+    if value is None:
+        return "nothing (null)"
+    if isinstance(value, bool):
+        return f"boolean {value}"
+    if isinstance(value, str):
+        return f"string {value!r}"
+    if isinstance(value, (int, float)):
+        return f"number {value!r}"
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    if isinstance(value, dict):
+        return "a mapping"
+    return type(value).__name__
+
+
+_TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "planner", "sim", "render")
+_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+
+
+def read_scenario(path: str | Path) -> Scenario:
+    """Parse and check a scenario file; raise :class:`ScenarioError` when it is wrong."""
+    path = Path(path)
+    r = _Reader(str(path))
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        r.fail("file", "no such file")
+    except IsADirectoryError:
+        r.fail("file", "is a directory, not a scenario file")
+    except (OSError, UnicodeDecodeError) as exc:
+        r.fail("file", f"cannot be read ({exc.__class__.__name__}: {exc})")
+    try:
+        doc = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "yaml"
+        problem = getattr(exc, "problem", None) or str(exc)
+        r.fail(where, f"invalid YAML: {' '.join(str(problem).split())}")
+    if doc is None:
+        r.fail("file", "is empty; expected a mapping with at least start and target")
+    doc = r.mapping(doc, "", _TOP)
+    for key in ("start", "target"):
+        if key not in doc:
+            r.fail(key, "is required")
+
+    name = doc.get("name", path.stem)
+    if not isinstance(name, str) or not _NAME_RE.match(name):
+        r.fail("name", f"must be a file-name-safe string (letters, digits, . _ -), got {_kind(name)}")
+    seed = r.integer(doc.get("seed", 0), "seed", ge=0)
+    width, height = r.pair(doc.get("workspace", [40, 40]), "workspace", positive=True)
+
+    rob = r.mapping(doc.get("robots"), "robots", ("radius", "margin", "count", "max_speed", "max_accel"))
+    radius = r.number(rob.get("radius", 1.0), "robots.radius", gt=0)
+    margin = r.number(rob.get("margin", 0.1), "robots.margin", ge=0)
+    count = None if rob.get("count") is None else r.integer(rob["count"], "robots.count", ge=1)
+    max_speed = r.number(rob.get("max_speed", 2.0), "robots.max_speed", gt=0)
+    max_accel = r.number(rob.get("max_accel", 2.0), "robots.max_accel", gt=0)
+
+    obstacles = _read_obstacles(r, doc.get("obstacles", []), width, height)
+    start = _read_placement(r, doc["start"], "start", width, height)
+    target = _read_placement(r, doc["target"], "target", width, height)
+    count = _resolve_count(r, count, start, target)
+
+    return Scenario(
+        path=str(path),
+        name=name,
+        seed=seed,
+        width=width,
+        height=height,
+        radius=radius,
+        margin=margin,
+        count=count,
+        max_speed=max_speed,
+        max_accel=max_accel,
+        obstacles=obstacles,
+        start=start,
+        target=target,
+        planner=_read_planner(r, doc.get("planner")),
+        sim=_read_sim(r, doc.get("sim")),
+        render=_read_render(r, doc.get("render")),
+    )
+
+
+def _read_obstacles(r: _Reader, value, width, height) -> tuple:
+    if value is None:
+        return ()
+    if not isinstance(value, list):
+        r.fail("obstacles", f"must be a list, got {_kind(value)}")
+    out = []
+    for k, item in enumerate(value):
+        f = f"obstacles[{k}]"
+        if not isinstance(item, dict) or len(item) != 1:
+            r.fail(f, "must be a mapping with exactly one of polygon, circle, random")
+        (kind, body), = item.items()
+        if kind == "polygon":
+            out.append(_read_polygon(r, body, f"{f}.polygon", width, height))
+        elif kind == "circle":
+            c = r.mapping(body, f"{f}.circle", ("center", "radius"))
+            if "center" not in c or "radius" not in c:
+                r.fail(f"{f}.circle", "needs center and radius")
+            center = r.pair(c["center"], f"{f}.circle.center")
+            rad = r.number(c["radius"], f"{f}.circle.radius", gt=0)
+            if not (0 <= center[0] <= width and 0 <= center[1] <= height):
+                r.fail(f"{f}.circle.center", f"({center[0]:g}, {center[1]:g}) lies outside the workspace")
+            out.append(Circle(center, rad))
+        elif kind == "random":
+            c = r.mapping(body, f"{f}.random", ("count", "size", "seed"))
+            n = r.integer(c.get("count", 3), f"{f}.random.count", ge=1)
+            size = r.pair(c.get("size", [4, 8]), f"{f}.random.size", positive=True)
+            if size[0] > size[1]:
+                r.fail(f"{f}.random.size", f"must be [min, max] with min <= max, got {list(size)}")
+            if size[1] >= min(width, height):
+                r.fail(f"{f}.random.size", f"max {size[1]:g} does not fit the workspace")
+            seed = None if c.get("seed") is None else r.integer(c["seed"], f"{f}.random.seed", ge=0)
+            out.append(RandomObstacles(n, size, seed))
+        else:
+            r.fail(f"{f}.{kind}", "unknown obstacle kind (allowed: polygon, circle, random)")
+    return tuple(out)
+
+
+def _read_polygon(r: _Reader, body, f: str, width, height) -> Polygon:
+    if not isinstance(body, list) or len(body) < 3:
+        r.fail(f, f"must be a list of at least 3 points [x, y], got {_kind(body)}")
+    pts = np.array([r.pair(p, f"{f}[{i}]") for i, p in enumerate(body)])
+    for i, (x, y) in enumerate(pts):
+        if not (0 <= x <= width and 0 <= y <= height):
+            r.fail(f"{f}[{i}]", f"({x:g}, {y:g}) lies outside the {width:g} x {height:g} workspace")
+    x, y = pts[:, 0], pts[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
+    if area <= 1e-12:
+        r.fail(f, "has zero area")
+    k = len(pts)
+    a, b = pts, np.roll(pts, -1, axis=0)
+    for i in range(k):
+        for j in range(i + 1, k):
+            if j == i + 1 or (i == 0 and j == k - 1):
+                continue
+            if segment_segment_distance(a[i], b[i], a[j], b[j]) <= 1e-12:
+                r.fail(f, f"is not simple: edge {i} meets edge {j}")
+    return Polygon(pts)
+
+
+def _read_placement(r: _Reader, value, f: str, width, height) -> FormationSpec:
+    if not isinstance(value, dict):
+        r.fail(f, f"must be a mapping with formation or points, got {_kind(value)}")
+    if "points" in value:
+        r.mapping(value, f, ("points",))
+        pts = value["points"]
+        if not isinstance(pts, list) or len(pts) < 1:
+            r.fail(f"{f}.points", f"must be a non-empty list of [x, y], got {_kind(pts)}")
+        return FormationSpec(points=tuple(r.pair(p, f"{f}.points[{i}]") for i, p in enumerate(pts)))
+    v = r.mapping(value, f, ("formation", "scale", "rotation", "center"))
+    if "formation" not in v:
+        r.fail(f, "needs formation or points")
+    name = v["formation"]
+    if name not in DEFAULT_COUNTS:
+        r.fail(f"{f}.formation", f"unknown formation {name!r} (known: {', '.join(DEFAULT_COUNTS)})")
+    scale = r.number(v.get("scale", 0.3), f"{f}.scale", gt=0, le=1)
+    rot = v.get("rotation", "random")
+    rotation = None if rot == "random" else r.number(rot, f"{f}.rotation")
+    cen = v.get("center", "random")
+    center = None
+    if cen != "random":
+        center = r.pair(cen, f"{f}.center")
+        if not (0 <= center[0] <= width and 0 <= center[1] <= height):
+            r.fail(f"{f}.center", f"({center[0]:g}, {center[1]:g}) lies outside the workspace")
+    return FormationSpec(formation=name, scale=scale, rotation=rotation, center=center)
+
+
+def _resolve_count(r: _Reader, count, start: FormationSpec, target: FormationSpec) -> int:
+    sizes = {}
+    for key, spec in (("start", start), ("target", target)):
+        if spec.points is not None:
+            sizes[key] = (len(spec.points), f"{key}.points")
+    if len(sizes) == 2 and sizes["start"][0] != sizes["target"][0]:
+        r.fail(
+            "target.points",
+            f"has {sizes['target'][0]} robots but start.points has {sizes['start'][0]}",
+        )
+    if sizes:
+        key, (n, where) = next(iter(sizes.items()))
+        if count is not None and count != n:
+            r.fail("robots.count", f"is {count} but {where} has {n} points")
+        count = n
+    if count is None:
+        defaults = {}
+        for key, spec in (("start", start), ("target", target)):
+            d = DEFAULT_COUNTS[spec.formation]
+            if d is not None:
+                defaults[key] = d
+        if not defaults:
+            r.fail(
+                "robots.count",
+                f"is required: {start.formation} -> {target.formation} has no default count",
+            )
+        if len(set(defaults.values())) > 1:
+            r.fail(
+                "robots.count",
+                f"count mismatch: start {start.formation} has {defaults['start']} robots, "
+                f"target {target.formation} has {defaults['target']}; set robots.count",
+            )
+        count = next(iter(defaults.values()))
+    if count < 2 and (start.points is None or target.points is None):
+        r.fail("robots.count", f"a formation needs at least 2 robots, got {count}")
+    return count
+
+
+def _read_planner(r: _Reader, value) -> PlannerParams:
+    v = r.mapping(value, "planner", tuple(f.name for f in fields(PlannerParams)))
+    d = PlannerParams()
+    return PlannerParams(
+        g=r.int_or_auto(v.get("g", "auto"), "planner.g"),
+        q=r.int_or_auto(v.get("q", "auto"), "planner.q"),
+        time_limit=r.number(v.get("time_limit", d.time_limit), "planner.time_limit", gt=0),
+        n=r.int_or_auto(v.get("n", "auto"), "planner.n", ge=2),
+        extra=r.int_or_auto(v.get("extra", "auto"), "planner.extra", ge=0),
+        concurrent=r.boolean(v.get("concurrent", d.concurrent), "planner.concurrent"),
+    )
+
+
+def _read_sim(r: _Reader, value) -> SimParams:
+    v = r.mapping(value, "sim", tuple(f.name for f in fields(SimParams)))
+    d = SimParams()
+    return SimParams(
+        mass=r.number(v.get("mass", d.mass), "sim.mass", gt=0),
+        kp=r.number(v.get("kp", d.kp), "sim.kp", gt=0),
+        kd=r.number(v.get("kd", d.kd), "sim.kd", ge=0),
+        dt=r.number(v.get("dt", d.dt), "sim.dt", gt=0, le=0.1),
+        substeps=r.integer(v.get("substeps", d.substeps), "sim.substeps", ge=1),
+        force_limit=r.number(v.get("force_limit", d.force_limit), "sim.force_limit", gt=0),
+        settle_time=r.number(v.get("settle_time", d.settle_time), "sim.settle_time", ge=0),
+        tolerance=r.number(v.get("tolerance", d.tolerance), "sim.tolerance", gt=0),
+    )
+
+
+def _read_render(r: _Reader, value) -> RenderParams:
+    v = r.mapping(value, "render", tuple(f.name for f in fields(RenderParams)))
+    d = RenderParams()
+    formats = v.get("formats", list(d.formats))
+    if isinstance(formats, str):
+        formats = [formats]
+    if not isinstance(formats, list) or not formats:
+        r.fail("render.formats", f"must be a list of gif and/or mp4, got {_kind(formats)}")
+    for i, fm in enumerate(formats):
+        if fm not in ("gif", "mp4"):
+            r.fail(f"render.formats[{i}]", f"unknown format {fm!r} (known: gif, mp4)")
+    speed = v.get("speedup", "auto")
+    return RenderParams(
+        fps=r.integer(v.get("fps", d.fps), "render.fps", ge=1),
+        size=r.integer(v.get("size", d.size), "render.size", ge=64),
+        trails=r.boolean(v.get("trails", d.trails), "render.trails"),
+        formats=tuple(dict.fromkeys(formats)),
+        speedup=None if speed == "auto" else r.number(speed, "render.speedup", gt=0),
+        video_seconds=r.number(v.get("video_seconds", d.video_seconds), "render.video_seconds", gt=0),
+    )
+
+
+# ----------------------------------------------------------------------------
+# from spec to problem
+
+
+def _random_obstacles(spec: RandomObstacles, width, height, rng, avoid, clearance):
+    """Random convex polygons: vertices at sorted random angles on a circle."""
+    gen = np.random.default_rng(spec.seed) if spec.seed is not None else rng
+    out = []
+    for _ in range(spec.count):
+        for _attempt in range(1000):
+            diameter = gen.uniform(spec.size[0], spec.size[1])
+            k = int(gen.integers(3, 9))
+            ang = np.sort(gen.uniform(0, 2 * np.pi, size=k))
+            rad = diameter / 2
+            c = gen.uniform([rad, rad], [width - rad, height - rad])
+            poly = Polygon(c + rad * np.stack([np.cos(ang), np.sin(ang)], axis=1))
+            x, y = poly.vertices[:, 0], poly.vertices[:, 1]
+            area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
+            if area < 0.05 * diameter**2:
+                continue  # a sliver; draw again
+            if len(avoid):
+                env = Environment.build(width, height, [poly])
+                if np.any(env.point_clearance(avoid) < clearance):
+                    continue
+            out.append(poly)
+            break
+        else:
+            raise ProblemError("obstacles", "cannot place a random obstacle clear of the explicit points")
+    return out
+
+
+def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
+    """Instantiate the scenario: random obstacles, formations, checks.
+
+    Raises :class:`ScenarioError` (with the file) for placements that do not
+    fit or overlap.
+    """
+    s = scenario
+    try:
+        clearance = s.radius + s.margin
+        sep = 2 * s.radius + s.margin
+        explicit = [np.asarray(p.points, float) for p in (s.start, s.target) if p.points is not None]
+        avoid = np.concatenate(explicit) if explicit else np.zeros((0, 2))
+        obstacles = []
+        for ob in s.obstacles:
+            if isinstance(ob, RandomObstacles):
+                obstacles.extend(_random_obstacles(ob, s.width, s.height, rng, avoid, clearance))
+            else:
+                obstacles.append(ob)
+        shell = Problem(s.width, s.height, tuple(obstacles), s.radius, s.margin, np.zeros((0, 2)), np.zeros((0, 2)))
+        placed = {}
+        for key in ("start", "target"):
+            spec = getattr(s, key)
+            if spec.points is not None:
+                pts = np.asarray(spec.points, float)
+                check_placement(shell, pts, f"{key}.points")
+            else:
+                side = spec.scale * min(s.width, s.height)
+                shape = formation_shape(spec.formation, s.count, side, sep, rng)
+                pts = place_formation(
+                    shape,
+                    shell.env,
+                    clearance,
+                    rotation=spec.rotation,
+                    center=spec.center,
+                    rng=rng,
+                    field=key,
+                )
+                check_placement(shell, pts, key)
+            placed[key] = pts
+        problem = Problem(
+            s.width,
+            s.height,
+            tuple(obstacles),
+            s.radius,
+            s.margin,
+            placed["start"],
+            placed["target"],
+            max_speed=s.max_speed,
+            max_accel=s.max_accel,
+        )
+        return problem.validate()
+    except ProblemError as exc:
+        raise ScenarioError(s.path, exc.field, exc.reason) from None
