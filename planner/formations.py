@@ -121,7 +121,32 @@ def _letters() -> dict[str, tuple[_Stroke, ...]]:
     }
 
 
-_LETTERS = _letters()
+def _split_at_corners(strokes) -> tuple[_Stroke, ...]:
+    """Split open polylines into straight pieces that share their corners.
+
+    Every corner then holds a robot (it is the free end of the piece before
+    it and an excluded start of the piece after it), so robots on the two
+    arms of a sharp corner never crowd each other.
+    """
+    out = []
+    for st in strokes:
+        if st.arc is not None or st.closed or len(st.points) <= 2:
+            out.append(st)
+            continue
+        pts = st.points
+        last = len(pts) - 2
+        for i in range(len(pts) - 1):
+            out.append(
+                _Stroke(
+                    points=(pts[i], pts[i + 1]),
+                    start_free=st.start_free if i == 0 else False,
+                    end_free=st.end_free if i == last else True,
+                )
+            )
+    return tuple(out)
+
+
+_LETTERS = {name: _split_at_corners(strokes) for name, strokes in _letters().items()}
 
 
 def _allocate(strokes: tuple[_Stroke, ...], m: int) -> list[int]:
@@ -236,20 +261,20 @@ def place_formation(
     center: tuple[float, float] | None,
     rng: np.random.Generator,
     field: str,
-    tries: int = 4000,
+    tries: int = 4096,
 ) -> np.ndarray:
     """Rotate ``shape`` (degrees; ``None`` = uniform in [-180, 180)) and shift it.
 
     With ``center=None`` the centre is drawn uniformly among the positions
     that keep the whole formation inside the walls and resampled until every
-    robot is clear of the obstacles.  Raises :class:`ProblemError` naming
-    ``field`` when the formation cannot fit.
+    robot is clear of the obstacles; a random rotation is redrawn too when
+    no centre works for it.  Raises :class:`ProblemError` naming ``field``
+    when the formation cannot fit.
     """
-    if rotation is None:
-        rotation = float(rng.uniform(-180.0, 180.0))
-    pts = _rotate(np.asarray(shape, float), rotation)
+    shape = np.asarray(shape, float)
     if center is not None:
-        placed = pts + np.asarray(center, float)
+        rot = float(rng.uniform(-180.0, 180.0)) if rotation is None else rotation
+        placed = _rotate(shape, rot) + np.asarray(center, float)
         clear, who = env.point_clearance_detail(placed)
         bad = np.flatnonzero(clear < clearance - 1e-9)
         if len(bad):
@@ -260,23 +285,32 @@ def place_formation(
                 f"{describe_obstacle(int(who[i]))}; move the centre or shrink the scale",
             )
         return placed
-    lo = -pts.min(axis=0) + clearance
-    hi = np.array([env.width, env.height]) - pts.max(axis=0) - clearance
-    if np.any(hi < lo):
-        size = np.ptp(pts, axis=0) + 2 * clearance
+    batch = 256
+    rotations = 16 if rotation is None else 1
+    fitted = False
+    for _ in range(rotations):
+        rot = float(rng.uniform(-180.0, 180.0)) if rotation is None else rotation
+        pts = _rotate(shape, rot)
+        lo = -pts.min(axis=0) + clearance
+        hi = np.array([env.width, env.height]) - pts.max(axis=0) - clearance
+        if np.any(hi < lo):
+            continue
+        fitted = True
+        for _ in range(max(1, tries // (batch * rotations))):
+            centers = rng.uniform(lo, hi, size=(batch, 2))
+            cand = centers[:, None, :] + pts[None]  # (batch, m, 2)
+            clear = env.point_clearance(cand.reshape(-1, 2)).reshape(batch, -1)
+            ok = np.flatnonzero((clear >= clearance).all(axis=1))
+            if len(ok):
+                return cand[ok[0]]
+    if not fitted:
+        size = np.ptp(_rotate(shape, 0.0 if rotation is None else rotation), axis=0) + 2 * clearance
+        turned = " at any of 16 random rotations" if rotation is None else ""
         raise ProblemError(
             field,
             f"formation needs {size[0]:.3g} x {size[1]:.3g} with clearance and does not fit "
-            f"the {env.width:g} x {env.height:g} workspace; lower the scale or robots.count",
+            f"the {env.width:g} x {env.height:g} workspace{turned}; lower the scale or robots.count",
         )
-    batch = 256
-    for _ in range(max(1, tries // batch)):
-        centers = rng.uniform(lo, hi, size=(batch, 2))
-        cand = centers[:, None, :] + pts[None]  # (batch, m, 2)
-        clear = env.point_clearance(cand.reshape(-1, 2)).reshape(batch, -1)
-        ok = np.flatnonzero((clear >= clearance).all(axis=1))
-        if len(ok):
-            return cand[ok[0]]
     raise ProblemError(
         field,
         f"formation does not fit the workspace clear of the obstacles "

@@ -61,6 +61,11 @@ class PebbleGraph:
     def n_edges(self) -> int:
         return sum(len(a) for a in self.neighbors) // 2
 
+    @classmethod
+    def from_edges(cls, vertices, edges) -> "PebbleGraph":
+        """A pebble graph with the given ``(E, 2)`` edge list (no geometry checked)."""
+        return _graph_from_edges(np.asarray(vertices, float).reshape(-1, 2), np.asarray(edges, int).reshape(-1, 2))
+
     def signature(self, occupied) -> tuple[int, ...]:
         """Pebbles per connected component for the occupied vertex indices."""
         counts = np.bincount(self.component[np.asarray(occupied, int)], minlength=self.n_components)
@@ -185,7 +190,7 @@ def build_pebble_graph(problem: Problem, vertices: np.ndarray) -> PebbleGraph:
     pairs = np.stack([iu, ju], axis=1)
     ok = edge_mask(problem, v, pairs)
     e = pairs[ok]
-    return _graph_from_edges(v, e)
+    return PebbleGraph.from_edges(v, e)
 
 
 def _graph_from_edges(v: np.ndarray, e: np.ndarray) -> PebbleGraph:

@@ -212,16 +212,27 @@ class Plan:
             d["stats"] = self.stats.to_dict()
         return d
 
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), separators=(",", ":")) + "\n"
+    def to_json(self, extra: dict | None = None) -> str:
+        """The plan as JSON; ``extra`` keys (e.g. scenario and seed) come first."""
+        d = dict(extra or {})
+        d.update(self.to_dict())
+        return json.dumps(d, separators=(",", ":")) + "\n"
 
-    def save(self, path: str | Path) -> Path:
+    def save(self, path: str | Path, extra: dict | None = None) -> Path:
         """Write the plan JSON atomically (a temporary file moved into place)."""
+        import os
+        import tempfile
+
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp")
-        tmp.write_text(self.to_json(), encoding="utf-8")
-        tmp.replace(path)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".json", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(self.to_json(extra))
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
         return path
 
     @classmethod

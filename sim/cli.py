@@ -30,6 +30,16 @@ def _seed_arg(value: str) -> int:
     return v
 
 
+def _positive_float(value: str) -> float:
+    try:
+        v = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {value!r}") from None
+    if not v > 0 or v != v or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {value}")
+    return v
+
+
 def _cmd_formations(args) -> int:
     from planner.formations import DEFAULT_COUNTS
 
@@ -65,6 +75,58 @@ def _cmd_show(args) -> int:
     return EXIT_OK
 
 
+def _print_stats(stats, margin: float, out=sys.stdout):
+    rows = [
+        ("found", "yes" if stats.found else "no"),
+        ("planning time", f"{stats.planning_time_s:.3f} s"),
+        ("g, q used", f"{stats.g}, {stats.q}"),
+        ("pebble graphs", f"{stats.graphs}"),
+        ("connections", f"{stats.connections}"),
+    ]
+    if stats.found:
+        rows += [
+            ("steps", f"{stats.steps}"),
+            ("makespan", f"{stats.makespan_s:.2f} s"),
+            ("path length", f"{stats.path_length:.2f}"),
+            ("min clearance", f"{stats.min_clearance:.4f} (margin {margin:g})"),
+        ]
+        if stats.makespan_lower_bound_s == stats.makespan_lower_bound_s:  # not NaN
+            rows += [
+                ("makespan bound", f"{stats.makespan_lower_bound_s:.2f} s "
+                 f"(plan is {stats.makespan_s / max(stats.makespan_lower_bound_s, 1e-9):.2f}x)"),
+                ("length bound", f"{stats.path_length_lower_bound:.2f}"),
+            ]
+    for key, value in rows:
+        print(f"  {key:<15} {value}", file=out)
+
+
+def _params_with_time_limit(scenario, time_limit):
+    from dataclasses import replace
+
+    return scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
+
+
+def _cmd_plan(args) -> int:
+    from planner import NoPlanFound, plan
+
+    scenario, seed, rng, problem = _load(args.scenario, args.seed)
+    out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-plan.json"
+    params = _params_with_time_limit(scenario, args.time_limit)
+    mode = "auto" if params.auto else f"g={params.g} q={params.q}"
+    print(f"{scenario.name} (seed {seed}): {problem.m} robots, "
+          f"{scenario.start.describe()} -> {scenario.target.describe()}, {mode}")
+    try:
+        result, stats = plan(problem, params, rng)
+    except NoPlanFound as exc:
+        _print_stats(exc.stats, problem.margin)
+        print(f"no plan: {exc}", file=sys.stderr)
+        return EXIT_FAIL
+    _print_stats(stats, problem.margin)
+    result.save(out, extra={"scenario": scenario.name, "seed": seed})
+    print(f"wrote {out}")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="swarmform",
@@ -83,11 +145,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="PNG file (default media/NAME-scenario.png)")
     s.add_argument("--size", type=int, default=480, help="picture side in pixels (default 480)")
     s.set_defaults(func=_cmd_show)
+
+    pl = sub.add_parser("plan", help="plan a scenario and write the plan JSON (with its stats)")
+    pl.add_argument("scenario", help="scenario YAML file")
+    pl.add_argument("--seed", type=_seed_arg, help="override the scenario's seed")
+    pl.add_argument("-o", "--output", help="plan JSON file (default media/NAME-plan.json)")
+    pl.add_argument("--time-limit", type=_positive_float, help="override planner.time_limit [s]")
+    pl.set_defaults(func=_cmd_plan)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    from planner.problem import ProblemError
+    from planner import PlanFileError, ProblemError
 
     from .scenario import ScenarioError
 
@@ -95,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ScenarioError, ProblemError, InputError) as exc:
+    except (ScenarioError, ProblemError, PlanFileError, InputError) as exc:
         print(f"swarmform: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except KeyboardInterrupt:

@@ -28,6 +28,7 @@ from .params import RenderParams, SimParams
 
 __all__ = [
     "FormationSpec",
+    "PaperRef",
     "RandomObstacles",
     "Scenario",
     "ScenarioError",
@@ -73,6 +74,15 @@ class FormationSpec:
 
 
 @dataclass(frozen=True)
+class PaperRef:
+    """Where a scenario comes from in the paper: table, row and reported time [s]."""
+
+    table: str
+    row: int
+    time_s: float
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A checked scenario file.  Lengths in workspace units, speeds in units/s."""
 
@@ -92,6 +102,7 @@ class Scenario:
     planner: PlannerParams
     sim: SimParams
     render: RenderParams
+    paper: PaperRef | None = None
 
 
 # ----------------------------------------------------------------------------
@@ -201,7 +212,7 @@ def _kind(value: Any) -> str:
     return type(value).__name__
 
 
-_TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "planner", "sim", "render")
+_TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "planner", "sim", "render", "paper")
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
 
@@ -266,6 +277,23 @@ def read_scenario(path: str | Path) -> Scenario:
         planner=_read_planner(r, doc.get("planner")),
         sim=_read_sim(r, doc.get("sim")),
         render=_read_render(r, doc.get("render")),
+        paper=_read_paper(r, doc.get("paper")),
+    )
+
+
+def _read_paper(r: _Reader, value) -> PaperRef | None:
+    if value is None:
+        return None
+    v = r.mapping(value, "paper", ("table", "row", "time_s"))
+    for key in ("table", "row", "time_s"):
+        if key not in v:
+            r.fail(f"paper.{key}", "is required")
+    if v["table"] not in ("II", "III"):
+        r.fail("paper.table", f"must be II or III, got {_kind(v['table'])}")
+    return PaperRef(
+        table=v["table"],
+        row=r.integer(v["row"], "paper.row", ge=1),
+        time_s=r.number(v["time_s"], "paper.time_s", gt=0),
     )
 
 
