@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .geometry import Environment
+from .geometry import Environment, greedy_separated
 from .problem import ProblemError, describe_obstacle
 
 __all__ = [
@@ -171,11 +171,22 @@ def _allocate(strokes: tuple[_Stroke, ...], m: int) -> list[int]:
         else:
             hi = mid
     c = counts(hi)
-    k = np.floor(c).astype(int)
+    k = np.floor(c + 1e-9).astype(int)
     rest = m - int(k.sum())
-    order = np.argsort(-(c - k), kind="stable")
-    for j in order[: max(rest, 0)]:
-        k[j] += 1
+    # Largest remainder first, but strokes with equal remainders (mirror
+    # images such as A's legs or N's uprights) get a robot all together or
+    # not at all, so the letter stays symmetric; a leftover that no group
+    # can take whole goes to the first strokes of the best group.
+    remainder = np.round(c - k, 9)
+    groups = [np.flatnonzero(remainder == r) for r in sorted(set(remainder.tolist()), reverse=True)]
+    for g in groups:
+        if 0 < len(g) <= rest:
+            k[g] += 1
+            rest -= len(g)
+    for g in groups:
+        take = g[:rest]
+        k[take] += 1
+        rest -= len(take)
     return [int(v) for v in k]
 
 
@@ -208,13 +219,11 @@ def _random_points(m: int, side: float, separation: float, rng: np.random.Genera
     side = max(side, separation)
     while True:
         pts = np.empty((0, 2))
-        for _ in range(200):
+        for _ in range(50):
             cand = rng.uniform(-side / 2, side / 2, size=(4 * m, 2))
-            for c in cand:
-                if len(pts) == 0 or np.min(np.sum((pts - c) ** 2, axis=1)) >= separation**2:
-                    pts = np.vstack([pts, c])
-                    if len(pts) == m:
-                        return pts
+            pts = np.vstack([pts, cand[greedy_separated(cand, separation, pts, m - len(pts))]])
+            if len(pts) == m:
+                return pts
         side *= 1.15
 
 

@@ -117,6 +117,12 @@ def _construct_mapping(loader, node, deep=False):
     seen = set()
     for key_node, _ in node.value:
         key = loader.construct_object(key_node, deep=deep)
+        try:
+            hash(key)
+        except TypeError:
+            raise yaml.constructor.ConstructorError(
+                None, None, "a mapping key must be a plain value, not a list or mapping", key_node.start_mark
+            ) from None
         if key in seen:
             raise yaml.constructor.ConstructorError(
                 None, None, f"duplicate key {key!r}", key_node.start_mark
@@ -156,7 +162,10 @@ class _Reader:
     def number(self, value, field, *, gt=None, ge=None, le=None) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.fail(field, f"must be a number, got {_kind(value)}")
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:
+            self.fail(field, "is too large a number")
         if not math.isfinite(value):
             self.fail(field, f"must be finite, got {value}")
         if gt is not None and not value > gt:
@@ -237,6 +246,8 @@ def read_scenario(path: str | Path) -> Scenario:
         r.fail(where, f"invalid YAML: {' '.join(str(problem).split())}")
     if doc is None:
         r.fail("file", "is empty; expected a mapping with at least start and target")
+    if not isinstance(doc, dict):
+        r.fail("file", f"must hold a mapping with at least start and target, got {_kind(doc)}")
     doc = r.mapping(doc, "", _TOP)
     for key in ("start", "target"):
         if key not in doc:
@@ -369,7 +380,7 @@ def _read_placement(r: _Reader, value, f: str, width, height) -> FormationSpec:
     if "formation" not in v:
         r.fail(f, "needs formation or points")
     name = v["formation"]
-    if name not in DEFAULT_COUNTS:
+    if not isinstance(name, str) or name not in DEFAULT_COUNTS:
         r.fail(f"{f}.formation", f"unknown formation {name!r} (known: {', '.join(DEFAULT_COUNTS)})")
     scale = r.number(v.get("scale", 0.3), f"{f}.scale", gt=0, le=1)
     rot = v.get("rotation", "random")
