@@ -1,0 +1,376 @@
+"""Two independent contact witnesses for a physics run.
+
+* :class:`PymunkWitness` listens to pymunk's collision callbacks
+  (``Space.on_collision``) for robot-robot, robot-obstacle and robot-wall
+  pairs.  A *touching episode* of a pair (two robots, or a robot and one
+  obstacle or the wall, however many convex pieces it touches) opens with
+  the first ``begin`` and closes when its last arbiter separates; each
+  episode is one :class:`Contact`, timed at the end of the physics step in
+  which it began, with the deepest penetration seen during the episode
+  (``-ContactPoint.distance``).
+* :class:`GapMonitor` measures, at every recorded sample, the exact gap
+  between every pair of disc boundaries and between every disc and every
+  obstacle and the walls (signed: negative means overlap).  Work is
+  skipped only where a bound proves it cannot matter: robot pairs too far
+  apart to touch or to set a new minimum (a Verlet list per few samples),
+  polygons whose bounding box is farther than the nearest wall or circle.  It keeps the
+  smallest gap and where it occurred, and opens one :class:`Contact` per
+  pair and touching episode (the first sample with a gap ``< 0``; the depth
+  is the largest overlap during the episode).
+
+A run is clean only when neither witness saw anything.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.geometry import point_segment_distance, points_in_polygon
+
+from .world import OBSTACLE, ROBOT, WALL
+
+__all__ = [
+    "ROBOT_OBSTACLE",
+    "ROBOT_ROBOT",
+    "ROBOT_WALL",
+    "Contact",
+    "GapMonitor",
+    "PymunkWitness",
+    "static_clearances",
+]
+
+ROBOT_ROBOT = "robot-robot"
+ROBOT_OBSTACLE = "robot-obstacle"
+ROBOT_WALL = "robot-wall"
+
+# Samples that share one Verlet list of candidate robot pairs, and the
+# candidates per robot above which the monitor switches to per-sample
+# nearest neighbours.
+_VERLET_SPAN = 16
+_PAIRS_PER_ROBOT = 40
+
+
+@dataclass(frozen=True)
+class Contact:
+    """One touching episode seen by one witness.
+
+    time: when it began [s].
+    kind: ``robot-robot``, ``robot-obstacle`` or ``robot-wall``.
+    a: robot index (the smaller one for ``robot-robot``).
+    b: the other robot (``robot-robot``), the obstacle index
+        (``robot-obstacle``) or ``-1`` (``robot-wall``).
+    depth: the deepest overlap during the episode, ``>= 0`` [workspace units].
+    witness: ``pymunk`` or ``monitor``.
+    """
+
+    time: float
+    kind: str
+    a: int
+    b: int
+    depth: float
+    witness: str
+
+    def to_dict(self) -> dict:
+        return {
+            "time": self.time,
+            "kind": self.kind,
+            "a": self.a,
+            "b": self.b,
+            "depth": self.depth,
+            "witness": self.witness,
+        }
+
+    def describe(self) -> str:
+        if self.kind == ROBOT_ROBOT:
+            who = f"robots {self.a} and {self.b}"
+        elif self.kind == ROBOT_WALL:
+            who = f"robot {self.a} and the wall"
+        else:
+            who = f"robot {self.a} and obstacle {self.b}"
+        return f"{who} touch at t = {self.time:.3f} s, depth {self.depth:.3g} ({self.witness})"
+
+
+def _contacts(records: list[list], witness: str) -> list[Contact]:
+    return [Contact(float(t), k, int(a), int(b), float(d), witness) for t, k, a, b, d in records]
+
+
+# -- pymunk's witness -------------------------------------------------------------
+
+
+class PymunkWitness:
+    """Records pymunk's ``begin`` events as touching episodes.
+
+    ``now`` must hold the time at the end of the physics step about to run
+    (the executor sets it before every ``space.step``); a ``begin`` during
+    that step is stamped with it.
+    """
+
+    def __init__(self, world):
+        self.now = 0.0
+        self._robot_of = world.robot_of
+        self._obstacle_of = world.obstacle_of
+        self._records: list[list] = []  # [time, kind, a, b, depth]
+        self._open: dict[tuple, list] = {}  # key -> [arbiter count, record]
+        space = world.space
+        for other in (ROBOT, OBSTACLE, WALL):
+            space.on_collision(
+                ROBOT,
+                other,
+                begin=self._begin,
+                pre_solve=self._pre_solve,
+                separate=self._separate,
+            )
+
+    def _key(self, arbiter) -> tuple[str, int, int]:
+        sa, sb = arbiter.shapes
+        ra = self._robot_of.get(sa)
+        rb = self._robot_of.get(sb)
+        if ra is not None and rb is not None:
+            return (ROBOT_ROBOT, min(ra, rb), max(ra, rb))
+        if ra is None:
+            ra, sb = rb, sa
+        ob = self._obstacle_of[sb]
+        return (ROBOT_WALL, ra, -1) if ob < 0 else (ROBOT_OBSTACLE, ra, ob)
+
+    @staticmethod
+    def _depth(arbiter) -> float:
+        pts = arbiter.contact_point_set.points
+        return max([0.0] + [-p.distance for p in pts])
+
+    def _begin(self, arbiter, space, data) -> None:
+        key = self._key(arbiter)
+        entry = self._open.get(key)
+        depth = self._depth(arbiter)
+        if entry is None:
+            record = [self.now, key[0], key[1], key[2], depth]
+            self._records.append(record)
+            self._open[key] = [1, record]
+        else:
+            entry[0] += 1
+            entry[1][4] = max(entry[1][4], depth)
+
+    def _pre_solve(self, arbiter, space, data) -> None:
+        entry = self._open.get(self._key(arbiter))
+        if entry is not None:
+            entry[1][4] = max(entry[1][4], self._depth(arbiter))
+
+    def _separate(self, arbiter, space, data) -> None:
+        key = self._key(arbiter)
+        entry = self._open.get(key)
+        if entry is not None:
+            entry[0] -= 1
+            if entry[0] <= 0:
+                del self._open[key]
+
+    def contacts(self) -> list[Contact]:
+        return _contacts(self._records, "pymunk")
+
+
+# -- the geometric monitor -------------------------------------------------------------
+
+
+def static_clearances(env, points: np.ndarray, n_obstacles: int, below: float | None = None) -> np.ndarray:
+    """Signed clearance of centres to every obstacle and to the walls.
+
+    Returns ``(N, n_obstacles + 1)``: column ``k`` is obstacle ``k``, the
+    last column the walls.  Distances are from the centre to the obstacle
+    set (a polygon's edges, a circle's rim, the nearest wall line),
+    negative when the centre is inside it; subtract the radius for the gap
+    of a disc.  Where a centre is outside every obstacle, the row minimum
+    equals :meth:`planner.geometry.Environment.point_clearance`.
+
+    With ``below`` given, a polygon entry is exact only where it is less
+    than ``below``; elsewhere it may be any lower bound that is at least
+    ``below`` (the distance to the polygon's bounding box), which is all a
+    search for the minimum or for overlaps needs.
+    """
+    pts = np.asarray(points, float).reshape(-1, 2)
+    out = np.empty((len(pts), n_obstacles + 1))
+    out[:, -1] = env.wall_clearance(pts)
+    if len(env.circle_radii):
+        d = np.sqrt(((pts[:, None, :] - env.circle_centers[None]) ** 2).sum(-1))
+        out[:, list(env.circle_ids)] = d - env.circle_radii[None]
+    for i, poly in enumerate(env.polygons):
+        col = env.polygon_ids[i]
+        if below is None:
+            sel = slice(None)
+        else:
+            lo, hi = poly.min(axis=0), poly.max(axis=0)
+            gap = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
+            bound = np.sqrt(np.einsum("nk,nk->n", gap, gap))
+            sel = np.flatnonzero(bound < below)
+            out[:, col] = bound
+            if len(sel) == 0:
+                continue
+        p = pts[sel]
+        d = point_segment_distance(p[:, None, :], poly[None], np.roll(poly, -1, axis=0)[None]).min(axis=1)
+        out[sel, col] = np.where(points_in_polygon(p, poly), -d, d)
+    return out
+
+
+class GapMonitor:
+    """Exact gaps at the recorded samples, the smallest one, and touching episodes.
+
+    Feed it samples in time order with :meth:`observe`.  ``min_gap`` is the
+    smallest gap seen [units], ``min_time`` its time [s], ``min_kind`` and
+    ``min_pair`` what attained it (robot pair; or robot and obstacle index,
+    ``-1`` for the wall).
+    """
+
+    def __init__(self, problem):
+        self.radius = float(problem.radius)
+        self.env = problem.env
+        self.n_obstacles = len(problem.obstacles)
+        self.min_gap = float("inf")
+        self.min_time = float("nan")
+        self.min_kind = ""
+        self.min_pair = (-1, -1)
+        self._records: list[list] = []
+        self._active: dict[tuple, list] = {}
+        
+    def contacts(self) -> list[Contact]:
+        return _contacts(self._records, "monitor")
+
+    # -- robot pairs --------------------------------------------------------------
+    def _robot_pairs(self, pos: np.ndarray, bound: float):
+        """Robot-robot gaps of the samples ``pos`` ``(C, m, 2)``.
+
+        Returns the smallest gap with its ``(sample, i, j)`` and the touching
+        ``(sample, i, j, gap)`` rows.  The smallest gap is exact whenever it
+        is below ``bound`` (otherwise it is only known to be at least
+        ``bound``, and ``inf`` may be returned).
+        """
+        best, where, touching = np.inf, None, []
+        if pos.shape[1] < 2:
+            return best, where, touching
+        for s0 in range(0, len(pos), _VERLET_SPAN):
+            g, w, t = self._pairs_block(pos[s0 : s0 + _VERLET_SPAN], min(bound, best))
+            if g < best:
+                best, where = g, (s0 + w[0], w[1], w[2])
+            touching.extend((s0 + s, i, j, gap) for s, i, j, gap in t)
+        return best, where, touching
+
+    def _pairs_block(self, pos: np.ndarray, bound: float):
+        """:meth:`_robot_pairs` for a few consecutive samples.
+
+        Candidate pairs (a Verlet list): no robot moves more than ``D``
+        from its position in the first sample, so a pair farther apart than
+        ``2 r + 2 D + max(bound, 0)`` there keeps a gap above
+        ``max(bound, 0)`` in every sample: it neither touches nor lowers the
+        minimum.  Only the closer pairs are measured, all samples at once.
+        """
+        from scipy.spatial import cKDTree
+
+        c, m = pos.shape[:2]
+        two_r = 2.0 * self.radius
+        touching: list[tuple[int, int, int, float]] = []
+        best, where = np.inf, None
+        move = pos - pos[:1]
+        reach = float(np.sqrt(np.einsum("cmk,cmk->cm", move, move).max()))
+        cutoff = two_r + 2.0 * reach + max(bound, 0.0) + 1e-9
+        pairs = cKDTree(pos[0]).query_pairs(cutoff, output_type="ndarray")
+        if len(pairs) > _PAIRS_PER_ROBOT * m:
+            # Too many candidates (sparse robots, large bound): exact nearest
+            # neighbours per sample instead.
+            for s in range(c):
+                tree = cKDTree(pos[s])
+                dd, jj = tree.query(pos[s], k=2)
+                i = int(np.argmin(dd[:, 1]))
+                g = float(dd[i, 1]) - two_r
+                if g < best:
+                    j = int(jj[i, 1])
+                    best, where = g, (s, min(i, j), max(i, j))
+                if g < 0.0:
+                    for i, j in tree.query_pairs(two_r, output_type="ndarray"):
+                        gap = float(np.linalg.norm(pos[s, i] - pos[s, j])) - two_r
+                        if gap < 0.0:
+                            touching.append((s, int(i), int(j), gap))
+            return best, where, touching
+        if len(pairs) == 0:
+            return best, where, touching
+        pi, pj = pairs[:, 0], pairs[:, 1]
+        diff = pos[:, pi] - pos[:, pj]
+        d2 = np.einsum("cpk,cpk->cp", diff, diff)
+        s, q = divmod(int(np.argmin(d2)), d2.shape[1])
+        g = math.sqrt(d2[s, q]) - two_r
+        i, j = int(pi[q]), int(pj[q])
+        best, where = g, (s, min(i, j), max(i, j))
+        if g < 0.0:
+            for s, q in zip(*np.nonzero(d2 < two_r * two_r)):
+                gap = math.sqrt(d2[s, q]) - two_r
+                if gap < 0.0:
+                    i, j = int(pi[q]), int(pj[q])
+                    touching.append((int(s), min(i, j), max(i, j), gap))
+        return best, where, touching
+
+    # -- samples --------------------------------------------------------------------
+    def observe(self, times: np.ndarray, positions: np.ndarray) -> None:
+        """Take samples ``positions`` ``(C, m, 2)`` at ``times`` ``(C,)`` (after earlier ones)."""
+        times = np.asarray(times, float).reshape(-1)
+        pos = np.asarray(positions, float)
+        c, m = pos.shape[:2]
+        if c == 0:
+            return
+        r = self.radius
+        events: list[tuple[int, str, int, int, float]] = []
+
+        pts = pos.reshape(-1, 2)
+        # Polygon entries need to be exact only where they could be the
+        # smallest gap of the chunk or an overlap: below what the walls and
+        # circles already give (never below the radius, i.e. a zero gap).
+        env = self.env
+        cheap = float(env.wall_clearance(pts).min())
+        if len(env.circle_radii):
+            d = np.sqrt(((pts[:, None, :] - env.circle_centers[None]) ** 2).sum(-1))
+            cheap = min(cheap, float((d - env.circle_radii[None]).min()))
+        below = max(cheap, r) + 1e-9
+        gaps = static_clearances(env, pts, self.n_obstacles, below=below) - r
+        flat = int(np.argmin(gaps))
+        row, col = divmod(flat, gaps.shape[1])
+        g = float(gaps[row, col])
+        if g < self.min_gap:
+            s, i = divmod(row, m)
+            ob = col if col < self.n_obstacles else -1
+            kind = ROBOT_OBSTACLE if ob >= 0 else ROBOT_WALL
+            self._set_min(g, times[s], kind, (i, ob))
+        if g < 0.0:
+            for row, col in zip(*np.nonzero(gaps < 0.0)):
+                s, i = divmod(int(row), m)
+                ob = int(col) if col < self.n_obstacles else -1
+                kind = ROBOT_OBSTACLE if ob >= 0 else ROBOT_WALL
+                events.append((s, kind, i, ob, float(gaps[row, col])))
+
+        best, where, touching = self._robot_pairs(pos, self.min_gap)
+        if best < self.min_gap:
+            s, i, j = where
+            self._set_min(best, times[s], ROBOT_ROBOT, (i, j))
+        events.extend((s, ROBOT_ROBOT, i, j, g) for s, i, j, g in touching)
+
+        if events or self._active:
+            self._episodes(times, events)
+
+    def _set_min(self, gap: float, time: float, kind: str, pair: tuple[int, int]) -> None:
+        self.min_gap = float(gap)
+        self.min_time = float(time)
+        self.min_kind = kind
+        self.min_pair = (int(pair[0]), int(pair[1]))
+
+    def _episodes(self, times: np.ndarray, events) -> None:
+        by_sample: dict[int, dict[tuple, float]] = {}
+        for s, kind, a, b, gap in events:
+            by_sample.setdefault(s, {})[(kind, a, b)] = gap
+        for s in range(len(times)):
+            now = by_sample.get(s, {})
+            for key in [k for k in self._active if k not in now]:
+                del self._active[key]
+            for key, gap in now.items():
+                record = self._active.get(key)
+                if record is None:
+                    record = [float(times[s]), key[0], key[1], key[2], -gap]
+                    self._records.append(record)
+                    self._active[key] = record
+                else:
+                    record[4] = max(record[4], -gap)
