@@ -27,7 +27,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .geometry import point_segment_distance
+from .geometry import greedy_separated, point_segment_distance
 from .problem import Problem
 
 __all__ = [
@@ -114,27 +114,7 @@ def sample_free_points(
         if n_bridge:
             cand = np.vstack([cand, _bridge_candidates(problem, n_bridge, rng, lo, hi)])
         cand = cand[env.point_clearance(cand) >= clr]
-        if len(pts) and len(cand):
-            d, _ = cKDTree(pts).query(cand, distance_upper_bound=sep)
-            cand = cand[d >= sep]
-        if len(cand) == 0:
-            continue
-        # Accept in order, skipping candidates too close to one accepted
-        # earlier in this batch.
-        conflicts = cKDTree(cand).query_pairs(sep, output_type="ndarray")
-        later = [[] for _ in range(len(cand))]
-        for i, j in conflicts:
-            later[min(i, j)].append(max(i, j))
-        blocked = np.zeros(len(cand), bool)
-        accepted = []
-        for i in range(len(cand)):
-            if blocked[i]:
-                continue
-            accepted.append(i)
-            if len(accepted) == need:
-                break
-            blocked[later[i]] = True
-        pts = np.vstack([pts, cand[accepted]])
+        pts = np.vstack([pts, cand[greedy_separated(cand, sep, pts, need)]])
     return pts[n0:]
 
 
@@ -219,20 +199,21 @@ def solve_pebbles(graph: PebbleGraph, start, target) -> list[tuple[int, int]]:
     ``start`` and ``target`` are collections of distinct vertex indices of
     equal size.  Every move goes along an edge onto a free vertex.  Complete:
     a solution exists exactly when the signatures agree, and then one is
-    returned; otherwise ``ValueError``.  Polynomial: on each component a
-    spanning tree is peeled leaf by leaf (Kornhauser-Miller-Spirakis style,
-    unlabeled case) with ``O(n^2)`` moves and ``O(n^2)`` work.
+    returned; otherwise ``ValueError``.  Polynomial: ``O(n^2)`` moves.
 
-    Peeling a leaf ``l`` of the remaining tree keeps the invariant "as many
-    pebbles as targets in the tree":
-      * ``l`` is a target and holds a pebble: fix it, remove ``l``;
-      * ``l`` is a target and is empty: the nearest pebble walks to ``l``
-        (every vertex between is empty because that pebble is the nearest);
-      * ``l`` is not a target and is empty: remove ``l``;
-      * ``l`` is not a target and holds a pebble: the pebbles on the path
-        to the nearest empty vertex each shift one step towards it, which
-        empties ``l`` (an empty vertex exists: the tree has more vertices
-        than targets).
+    First, while some pebble off the target set has an edge straight to a
+    free target vertex, the shortest such move is made (this alone often
+    finishes, with few and short moves).  The rest is solved on each
+    component by peeling a spanning tree leaf by leaf (the unlabeled case of
+    Kornhauser, Miller and Spirakis), which keeps the invariant "as many
+    pebbles as targets in the remaining tree":
+      * a leaf ``l`` that is a target and holds a pebble: fix it, remove ``l``;
+      * a target leaf that is empty: the nearest pebble walks to ``l`` (every
+        vertex between is empty because that pebble is the nearest);
+      * a non-target leaf that is empty: remove it;
+      * a non-target leaf that holds a pebble: the pebbles on the path to the
+        nearest empty vertex each shift one step towards it, which empties
+        ``l`` (an empty vertex exists: the tree has more vertices than targets).
     """
     start = [int(x) for x in start]
     target = [int(x) for x in target]
@@ -244,16 +225,38 @@ def solve_pebbles(graph: PebbleGraph, start, target) -> list[tuple[int, int]]:
     occupied[start] = True
     is_target = np.zeros(graph.n, bool)
     is_target[target] = True
-    moves: list[tuple[int, int]] = []
+    moves = _direct_moves(graph, occupied, is_target)
     for comp in range(graph.n_components):
         verts = np.flatnonzero(graph.component == comp)
-        if not occupied[verts].any():
-            continue
         if np.array_equal(occupied[verts], is_target[verts]):
             continue
         tree = _spanning_tree(graph, int(verts[0]))
         _peel(tree, occupied, is_target, moves)
     return moves
+
+
+def _direct_moves(graph: PebbleGraph, occupied, is_target) -> list[tuple[int, int]]:
+    """Greedy shortest edges from pebbles off target onto free targets (in place)."""
+    v = graph.vertices
+    moves = []
+    while True:
+        src = np.flatnonzero(occupied & ~is_target)
+        best = None
+        for u in src:
+            nb = graph.neighbors[u]
+            nb = nb[is_target[nb] & ~occupied[nb]]
+            if len(nb) == 0:
+                continue
+            d = np.linalg.norm(v[nb] - v[u], axis=1)
+            j = int(np.argmin(d))
+            if best is None or d[j] < best[0]:
+                best = (float(d[j]), int(u), int(nb[j]))
+        if best is None:
+            return moves
+        _, u, w = best
+        moves.append((u, w))
+        occupied[u] = False
+        occupied[w] = True
 
 
 def _spanning_tree(graph: PebbleGraph, root: int) -> dict[int, set[int]]:

@@ -6,10 +6,12 @@ import time
 
 import numpy as np
 
+from .bounds import lower_bounds
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
-from .upump import NoPlanFound, plan_sequential
+from .schedule import merge_moves, schedule, shortcut
+from .upump import NoPlanFound, build_roadmap, retrieve
 from .validate import PlanInvalid, check_plan
 
 __all__ = ["NoPlanFound", "plan"]
@@ -28,19 +30,49 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     problem.validate()
     t0 = time.perf_counter()
     deadline = t0 + params.time_limit
-    waypoints, stats = plan_sequential(problem, params, rng, deadline)
-    result = Plan.from_waypoints(
-        _drop_idle(waypoints), problem.radius, problem.margin, problem.max_speed, problem.max_accel
-    )
+    if _same_set(problem.start, problem.target):
+        stats = PlanStats(found=True)
+        result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
+                                     problem.max_speed, problem.max_accel)
+    else:
+        roadmap, source, goal, stats = build_roadmap(problem, params, rng, deadline)
+        best = None
+        for route in roadmap.routes(source, goal, _ROUTES):
+            candidate, sequential = _timed(problem, params, retrieve(problem, roadmap, route))
+            if best is None or candidate.makespan < best[0].makespan:
+                best = (candidate, sequential, route)
+        result, sequential, route = best
+        stats.extra["sequential_steps"] = sequential
+        stats.extra["route"] = [int(g) for g, _ in route]
     try:
         clearance = check_plan(problem, result)
     except PlanInvalid as exc:  # a bug, never an expected outcome
         raise AssertionError(f"planner produced an invalid plan: {exc}") from exc
     _fill_stats(stats, result, clearance.value)
+    stats.makespan_lower_bound_s, stats.path_length_lower_bound = lower_bounds(problem)
     stats.planning_time_s = time.perf_counter() - t0
     result = Plan(result.radius, result.margin, result.durations, result.waypoints,
                   result.max_speed, result.max_accel, stats)
     return result, stats
+
+
+_ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
+
+
+def _timed(problem: Problem, params: PlannerParams, waypoints) -> tuple[Plan, int]:
+    """Merge, schedule and time a retrieved route; also return its sequential step count."""
+    waypoints = _drop_idle(waypoints)
+    sequential = len(waypoints) - 1
+    waypoints = merge_moves(problem, waypoints)
+    if params.concurrent:
+        waypoints = shortcut(problem, schedule(problem, waypoints))
+    plan = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed, problem.max_accel)
+    return plan, sequential
+
+
+def _same_set(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two placements are the same set of points."""
+    return bool(np.array_equal(a[np.lexsort(a.T[::-1])], b[np.lexsort(b.T[::-1])]))
 
 
 def _drop_idle(waypoints: list[np.ndarray]) -> np.ndarray:

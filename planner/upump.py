@@ -22,6 +22,7 @@ Filled gaps, following Solovey and Halperin's KPUMP/UPUMP:
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -30,12 +31,13 @@ import networkx as nx
 import numpy as np
 
 from .connect import Connection, connect
+from .guide import expanded_placement, guided_placements
 from .params import PlannerParams
 from .pebble import PebbleGraph, build_pebble_graph, sample_free_points, solve_pebbles
 from .plan import Plan, PlanStats, step_duration
 from .problem import Problem
 
-__all__ = ["NoPlanFound", "Roadmap", "plan_sequential", "pump"]
+__all__ = ["NoPlanFound", "Roadmap", "build_roadmap", "pump", "retrieve"]
 
 
 class NoPlanFound(RuntimeError):
@@ -74,12 +76,20 @@ class Roadmap:
 
     problem: Problem
     graphs: list[PebbleGraph] = field(default_factory=list)
+    preferred: list[np.ndarray | None] = field(default_factory=list)
     graph: nx.Graph = field(default_factory=nx.Graph)
+    families: list[list[int]] = field(default_factory=list)
     attempts: int = 0
     found: int = 0
 
-    def add_graph(self, g: PebbleGraph) -> int:
+    def add_graph(self, g: PebbleGraph, preferred: np.ndarray | None = None) -> int:
+        """Add a pebble graph; ``preferred`` are its own placement's vertices.
+
+        Connections favour preferred vertices (scanned first), and routes
+        that land elsewhere are charged the pebble moves this costs.
+        """
         self.graphs.append(g)
+        self.preferred.append(None if preferred is None else np.asarray(preferred, int))
         return len(self.graphs) - 1
 
     def add_connections(self, conns: list[Connection]):
@@ -94,24 +104,26 @@ class Roadmap:
     def _pebble_estimate(self, c: Connection) -> float:
         """A rough time for the pebble moves around a connection (for routing).
 
-        Each end of a connection that does not coincide with the graph's own
-        start/target placement costs about one short pebble move per robot
-        that is off it; this prefers routes with fewer pebble moves.
+        Each end of a connection on a graph with a preferred placement costs
+        one short pebble move per robot that lands off it; on other graphs,
+        half the robots are assumed to move once.
         """
         p = self.problem
         step = step_duration(p.separation, p.max_speed, p.max_accel)
         cost = 0.0
         for gid, verts in ((c.a, c.src), (c.b, c.dst)):
-            if gid in (0, 1):
-                cost += step * int(np.count_nonzero(np.asarray(verts) >= p.m))
+            pref = self.preferred[gid]
+            if pref is None:
+                cost += step * p.m / 2
+            else:
+                cost += step * int(np.count_nonzero(~np.isin(verts, pref)))
         return cost
 
     def connect_pair(self, a: int, b: int, attempts: int, rng) -> int:
         """Run CON_GEN between graphs ``a`` and ``b`` and add what it finds.
 
         On the start graph (0) and the target graph (1) only the start's and
-        the target's signatures are useful, and their own placements (the
-        first ``m`` vertices) are preferred.
+        the target's signatures are useful.
         """
         m = self.problem.m
         own = np.arange(m)
@@ -126,8 +138,8 @@ class Roadmap:
             rng,
             need_a=need.get(a),
             need_b=need.get(b),
-            prefer_a=own if a in need else None,
-            prefer_b=own if b in need else None,
+            prefer_a=self.preferred[a],
+            prefer_b=self.preferred[b],
         )
         self.attempts += attempts
         self.add_connections(conns)
@@ -141,8 +153,26 @@ class Roadmap:
         except nx.NetworkXNoPath:
             return None
 
+    def routes(self, source, goal, k: int) -> list[list]:
+        """Candidate routes: the ``k`` best by estimated time, plus the best
+        route inside each family of graphs built to work together (the
+        shared start-target graph, the guided chains), without repeats."""
+        if self.route(source, goal) is None:
+            return []
+        out = list(itertools.islice(nx.shortest_simple_paths(self.graph, source, goal, weight="weight"), k))
+        for fam in self.families:
+            keep = set(fam) | {0, 1}
+            sub = nx.subgraph_view(self.graph, filter_node=lambda node: node[0] in keep)
+            try:
+                r = nx.dijkstra_path(sub, source, goal, weight="weight")
+            except (nx.NetworkXNoPath, nx.NodeNotFound):
+                continue
+            if r not in out:
+                out.append(r)
+        return out
 
-def _retrieve(problem: Problem, roadmap: Roadmap, route: list) -> list[np.ndarray]:
+
+def retrieve(problem: Problem, roadmap: Roadmap, route: list) -> list[np.ndarray]:
     """RETRIEVE_PATH: waypoints along a roadmap route (pebble moves and connections)."""
     m = problem.m
     pos = problem.start.copy()
@@ -183,26 +213,25 @@ def _graph_size(problem: Problem, params: PlannerParams) -> int:
     return int(math.ceil(1.5 * problem.m)) + 2
 
 
-def plan_sequential(problem: Problem, params: PlannerParams, rng: np.random.Generator, deadline: float):
-    """Build the roadmap and retrieve a route; returns ``(waypoints, stats)``.
+def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Generator, deadline: float):
+    """Sample pebble graphs and connections until the start and target connect.
 
-    Raises :class:`NoPlanFound` when the start and target stay unconnected.
+    Returns ``(roadmap, source node, goal node, stats)``; raises
+    :class:`NoPlanFound` when they stay unconnected within the limits.
     """
     t0 = time.perf_counter()
     m = problem.m
     stats = PlanStats()
     extra = params.extra if params.extra is not None else max(2, math.ceil(m / 4))
+    own = np.arange(m)
     rm = Roadmap(problem)
-    rm.add_graph(pump(problem, problem.start, extra, rng))
-    rm.add_graph(pump(problem, problem.target, extra, rng))
-    source = (0, rm.graphs[0].signature(range(m)))
-    goal = (1, rm.graphs[1].signature(range(m)))
+    rm.add_graph(pump(problem, problem.start, extra, rng), own)
+    rm.add_graph(pump(problem, problem.target, extra, rng), own)
+    source = (0, rm.graphs[0].signature(own))
+    goal = (1, rm.graphs[1].signature(own))
+    _add_shared(problem, rm, extra, rng)
     n = _graph_size(problem, params)
     bridge = 0.2 if problem.obstacles else 0.0
-
-    if _same_placement(problem.start, problem.target):
-        stats.found = True
-        return [problem.start.copy()], _finish(stats, rm, 0, 0, t0)
 
     def sample_graph():
         v = sample_free_points(problem, n, rng, bridge_fraction=bridge)
@@ -210,14 +239,16 @@ def plan_sequential(problem: Problem, params: PlannerParams, rng: np.random.Gene
             return None
         return build_pebble_graph(problem, v)
 
-    route = None
+    def connected():
+        return rm.route(source, goal) is not None
+
     if params.auto:
         q = params.q if params.q is not None else 16
         g_cap = params.g  # None: unlimited
         rm.connect_pair(0, 1, q, rng)
-        route = rm.route(source, goal)
+        _add_guided(problem, rm, extra, q, rng)
         sampled = 0
-        while route is None and time.perf_counter() < deadline and (g_cap is None or sampled < g_cap):
+        while not connected() and time.perf_counter() < deadline and (g_cap is None or sampled < g_cap):
             g = sample_graph()
             sampled += 1
             if g is None:
@@ -227,8 +258,7 @@ def plan_sequential(problem: Problem, params: PlannerParams, rng: np.random.Gene
                 rm.connect_pair(other, gid, q, rng)
                 if time.perf_counter() > deadline:
                     break
-            route = rm.route(source, goal)
-            if route is None and params.q is None and sampled % 3 == 0:
+            if not connected() and params.q is None and sampled % 3 == 0:
                 q = min(2 * q, 512)
         q_used, g_used = q, sampled
     else:
@@ -239,25 +269,95 @@ def plan_sequential(problem: Problem, params: PlannerParams, rng: np.random.Gene
         for a in range(len(rm.graphs)):
             for b in range(a + 1, len(rm.graphs)):
                 rm.connect_pair(a, b, params.q, rng)
-        route = rm.route(source, goal)
         q_used, g_used = params.q, params.g
 
     stats = _finish(stats, rm, g_used, q_used, t0)
-    if route is None:
+    if not connected():
         raise NoPlanFound(
             f"start and target not connected after {g_used} pebble graphs and "
             f"{rm.attempts} connection attempts",
             stats,
         )
     stats.found = True
-    return _retrieve(problem, rm, route), stats
+    return rm, source, goal, stats
 
 
-def _same_placement(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether two placements are the same set of points."""
-    ka = a[np.lexsort(a.T[::-1])]
-    kb = b[np.lexsort(b.T[::-1])]
-    return bool(np.array_equal(ka, kb))
+def _add_shared(problem: Problem, rm: Roadmap, extra: int, rng) -> None:
+    """One pebble graph holding both the start and the target, when they are separated.
+
+    It joins the start and target graphs by zero-length connections (the
+    robots stay where they are), so routes may solve the whole problem by
+    pebble moves in one graph, which are short when the formations are
+    near each other.
+    """
+    m = problem.m
+    d = np.linalg.norm(problem.start[:, None] - problem.target[None], axis=2)
+    if d.min() < problem.separation:
+        return
+    both = np.vstack([problem.start, problem.target])
+    g = pump(problem, both, extra, rng)
+    gid = rm.add_graph(g, np.arange(2 * m))
+    rm.families.append([gid])
+    own = np.arange(m)
+    for a, verts in ((0, own), (1, own + m)):
+        sig_g = g.signature(verts)
+        c = Connection(a, gid, own, verts, 0.0, rm.graphs[a].signature(own), sig_g)
+        rm.add_connections([c])
+
+
+def _placement_graph(problem: Problem, pts: np.ndarray, extra: int, rng, rm: Roadmap) -> int | None:
+    """Add the pebble graph of a (thinned) placement plus free vertices near it."""
+    if len(pts) == 0:
+        return None
+    free = sample_free_points(
+        problem, extra + problem.m - len(pts), rng, existing=pts,
+        low=pts.min(axis=0) - 2 * problem.separation, high=pts.max(axis=0) + 2 * problem.separation,
+    )
+    if len(pts) + len(free) < problem.m:
+        free = np.vstack([free, sample_free_points(problem, problem.m - len(pts) - len(free), rng,
+                                                   existing=np.vstack([pts, free]))])
+    g = build_pebble_graph(problem, np.vstack([pts, free]))
+    if g.n < problem.m:
+        return None
+    return rm.add_graph(g, np.arange(len(pts)))
+
+
+def _add_chain(problem, rm, extra, attempts, rng, first, last, start_pts, target_pts):
+    """Guided placements from ``start_pts`` to ``target_pts``, chained ``first`` -> ``last``."""
+    placements, _ = guided_placements(problem, start_pts, target_pts)
+    chain = [first]
+    for pts in placements:
+        gid = _placement_graph(problem, pts, extra, rng, rm)
+        if gid is not None:
+            chain.append(gid)
+    chain.append(last)
+    for a, b in zip(chain[:-1], chain[1:]):
+        if (a, b) != (0, 1):
+            rm.connect_pair(a, b, attempts, rng)
+    return chain
+
+
+def _add_guided(problem: Problem, rm: Roadmap, extra: int, attempts: int, rng) -> None:
+    """Guided graphs: the direct chain, and expand -> chain -> contract.
+
+    The second route first spreads the start formation out (a scaling that
+    never brings robots closer), crosses to the spread-out target along a
+    CAPT-spaced chain, and contracts into the target.
+    """
+    rm.families.append(_add_chain(problem, rm, extra, attempts, rng, 0, 1, problem.start, problem.target))
+    es = expanded_placement(problem, problem.start)
+    et = expanded_placement(problem, problem.target)
+    a = 0 if es is None else _placement_graph(problem, es, extra, rng, rm)
+    b = 1 if et is None else _placement_graph(problem, et, extra, rng, rm)
+    if a is None or b is None or (a, b) == (0, 1):
+        return
+    if a != 0:
+        rm.connect_pair(0, a, attempts, rng)
+    if b != 1:
+        rm.connect_pair(b, 1, attempts, rng)
+    chain = _add_chain(problem, rm, extra, attempts, rng, a, b,
+                       rm.graphs[a].vertices[rm.preferred[a]], rm.graphs[b].vertices[rm.preferred[b]])
+    rm.families.append([0, *chain, 1])
 
 
 def _finish(stats: PlanStats, rm: Roadmap, g: int, q: int, t0: float) -> PlanStats:

@@ -1,0 +1,62 @@
+"""Lower bounds on a plan's makespan and path length.
+
+Whatever the plan, robot ``i`` must travel at least from ``s_i`` to the
+target it ends on, and the targets form a permutation.  The makespan is at
+least the duration of one straight step over the *bottleneck* assignment
+distance ``min_sigma max_i |s_i - t_sigma(i)|`` under the plan's own time
+scaling and limits (what the swarm would need if no robot were in
+another's way); the path length is at least the *minimum-sum* assignment
+distance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+from .plan import step_duration
+from .problem import Problem
+
+__all__ = ["bottleneck_distance", "lower_bounds", "min_sum_distance"]
+
+
+def _distances(start, target) -> np.ndarray:
+    return np.linalg.norm(np.asarray(start)[:, None] - np.asarray(target)[None], axis=2)
+
+
+def min_sum_distance(start, target) -> float:
+    """Minimum over assignments of the summed straight-line distances."""
+    d = _distances(start, target)
+    r, c = linear_sum_assignment(d)
+    return float(d[r, c].sum())
+
+
+def bottleneck_distance(start, target) -> float:
+    """Minimum over assignments of the longest straight-line distance.
+
+    Binary search over the sorted distinct distances, each tested with a
+    maximum bipartite matching on the pairs no longer than the candidate.
+    """
+    d = _distances(start, target)
+    m = len(d)
+    if m == 0:
+        return 0.0
+    values = np.unique(d)
+    lo, hi = 0, len(values) - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        match = maximum_bipartite_matching(csr_matrix(d <= values[mid]), perm_type="column")
+        if np.all(match >= 0):
+            hi = mid
+        else:
+            lo = mid + 1
+    return float(values[lo])
+
+
+def lower_bounds(problem: Problem) -> tuple[float, float]:
+    """``(makespan lower bound [s], path length lower bound)`` of ``problem``."""
+    d_star = bottleneck_distance(problem.start, problem.target)
+    makespan = float(step_duration(d_star, problem.max_speed, problem.max_accel))
+    return makespan, min_sum_distance(problem.start, problem.target)

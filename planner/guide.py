@@ -1,0 +1,242 @@
+"""Guided pebble graphs: intermediate placements along single-robot shortest paths.
+
+The paper samples pebble graphs uniformly.  A roadmap built only from such
+graphs connects the start and target through placements spread over the
+whole workspace, so robots travel far out of their way.  Guided graphs are
+an extra source of samples (the uniform ones stay, so nothing is lost):
+
+1. every start is assigned a target by a minimum-sum assignment on squared
+   shortest-path lengths among the obstacles (the CAPT choice, which tends
+   to avoid crossings);
+2. each robot's path is the shortest polyline through a visibility graph of
+   the starts, targets and obstacle corners (corners pushed out by the
+   clearance; all visibility tests exact);
+3. intermediate placement ``j`` of ``k`` puts every robot at fraction
+   ``j / (k + 1)`` of its own path length.  Successive placements then
+   differ by straight legs whose longest is ``max path / (k + 1)``, so
+   connection steps between them add up to the bottleneck path length,
+   and the makespan stays near its lower bound.
+
+Points of a placement that crowd each other are dropped (a pebble graph's
+vertices must be separated); the pumped free vertices make up for them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from .problem import Circle, Problem
+
+__all__ = ["corner_points", "expanded_placement", "guided_placements", "shortest_paths"]
+
+
+def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
+    """Points just outside every convex polygon corner and around every circle."""
+    clr = problem.clearance * slack
+    pts = []
+    for ob in problem.obstacles:
+        if isinstance(ob, Circle):
+            k = 12
+            ang = np.arange(k) * 2 * np.pi / k
+            # The ring's chords must stay clear too: push by 1/cos(pi/k).
+            rad = (ob.radius + clr) / np.cos(np.pi / k)
+            pts.append(np.asarray(ob.center) + rad * np.stack([np.cos(ang), np.sin(ang)], axis=1))
+            continue
+        v = ob.vertices  # counter-clockwise
+        prev = np.roll(v, 1, axis=0)
+        nxt = np.roll(v, -1, axis=0)
+        e1 = v - prev
+        e2 = nxt - v
+        convex = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) > 0
+        n1 = np.stack([e1[:, 1], -e1[:, 0]], axis=1)  # outward normals (CCW)
+        n2 = np.stack([e2[:, 1], -e2[:, 0]], axis=1)
+        n1 /= np.linalg.norm(n1, axis=1, keepdims=True)
+        n2 /= np.linalg.norm(n2, axis=1, keepdims=True)
+        # Two points per convex corner, one along each outward normal, and
+        # one on the bisector: the corner's rounded offset is then covered.
+        bis = n1 + n2
+        bis /= np.maximum(np.linalg.norm(bis, axis=1, keepdims=True), 1e-12)
+        cos_half = np.maximum((bis * n1).sum(axis=1, keepdims=True), 0.2)
+        for p in (v + clr * n1, v + clr * n2, v + clr * bis / cos_half):
+            pts.append(p[convex])
+    if not pts:
+        return np.zeros((0, 2))
+    pts = np.concatenate(pts)
+    inside = (pts[:, 0] > 0) & (pts[:, 0] < problem.width) & (pts[:, 1] > 0) & (pts[:, 1] < problem.height)
+    pts = pts[inside]
+    return pts[problem.env.point_clearance(pts) >= problem.clearance]
+
+
+def _visible(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(len(a), len(b))`` mask of clear straight segments."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros((len(a), len(b)), bool)
+    aa = np.repeat(a, len(b), axis=0)
+    bb = np.tile(b, (len(a), 1))
+    ok = problem.env.segment_clearance(aa, bb) >= problem.clearance
+    return ok.reshape(len(a), len(b))
+
+
+def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
+    """Shortest obstacle-avoiding path lengths ``(m, m)`` and a path builder.
+
+    Returns ``(length, path)`` where ``path(i, j)`` is the ``(p, 2)``
+    polyline from ``starts[i]`` to ``targets[j]``; ``length`` is ``inf``
+    where the visibility graph has no path.
+    """
+    corners = corner_points(problem)
+    c = len(corners)
+    direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
+    if problem.obstacles:
+        direct = np.where(_visible(problem, starts, targets), direct, np.inf)
+    if c == 0:
+        return direct, lambda i, j: np.stack([starts[i], targets[j]])
+    vis_cc = _visible(problem, corners, corners)
+    dcc = np.where(vis_cc, np.linalg.norm(corners[:, None] - corners[None], axis=2), np.inf)
+    np.fill_diagonal(dcc, 0.0)
+    from scipy.sparse.csgraph import shortest_path
+
+    dist_cc, pred_cc = shortest_path(np.where(np.isfinite(dcc), dcc, 0.0), directed=False,
+                                     return_predecessors=True)
+    dist_cc = np.where(np.isfinite(dist_cc), dist_cc, np.inf)
+    dsc = np.where(_visible(problem, starts, corners), np.linalg.norm(starts[:, None] - corners[None], axis=2), np.inf)
+    dct = np.where(_visible(problem, corners, targets), np.linalg.norm(corners[:, None] - targets[None], axis=2), np.inf)
+    # start -> first corner -> ... -> last corner, minimised over the corners
+    via_first = dsc[:, :, None] + dist_cc[None]  # (m, c, c): start, first, last
+    first_of = np.argmin(via_first, axis=1)  # (m, c): best first corner per last corner
+    to_last = np.take_along_axis(via_first, first_of[:, None, :], axis=1)[:, 0, :]  # (m, c)
+    through = to_last[:, :, None] + dct[None]  # (m, c, m)
+    last_of = np.argmin(through, axis=1)  # (m, m)
+    length_via = np.take_along_axis(through, last_of[:, None, :], axis=1)[:, 0, :]
+    length = np.minimum(direct, length_via)
+
+    def path(i: int, j: int) -> np.ndarray:
+        if direct[i, j] <= length_via[i, j]:
+            return np.stack([starts[i], targets[j]])
+        last = int(last_of[i, j])
+        first = int(first_of[i, last])
+        chain = [last]
+        while chain[-1] != first:
+            chain.append(int(pred_cc[first, chain[-1]]))
+        return np.vstack([starts[i], corners[chain[::-1]], targets[j]])
+
+    return length, path
+
+
+def _point_at(path: np.ndarray, s: float) -> np.ndarray:
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    s = float(np.clip(s, 0.0, cum[-1]))
+    k = min(int(np.searchsorted(cum, s, side="right")) - 1, len(seg) - 1)
+    u = 0.0 if seg[k] == 0 else (s - cum[k]) / seg[k]
+    return path[k] + u * (path[k + 1] - path[k])
+
+
+def guided_placements(problem: Problem, start=None, target=None, max_leg: float | None = None,
+                      max_graphs: int = 8):
+    """Intermediate placements along the assigned shortest paths.
+
+    ``start`` and ``target`` default to the problem's placements.
+    Returns a list of ``(k_points, 2)`` arrays (each already thinned to
+    separated, clear points) and the assignment ``sigma`` (start ``i`` is
+    guided to ``target[sigma[i]]``; -1 when unmatched).  ``k`` is the
+    smallest count whose straight legs all stay clear of the obstacles,
+    with at least one placement when the straight motion is blocked.
+    """
+    start = problem.start if start is None else np.asarray(start, float)
+    target = problem.target if target is None else np.asarray(target, float)
+    length, path = shortest_paths(problem, start, target)
+    finite = np.isfinite(length)
+    cost = np.where(finite, length**2, 1e18)
+    rows, cols = linear_sum_assignment(cost)  # rectangular when a placement was thinned
+    sigma = np.full(len(start), -1)
+    sigma[rows] = cols
+    paths = [path(i, j) if finite[i, j] else np.stack([start[i], target[j]]) for i, j in zip(rows, cols)]
+    lens = np.array([np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in paths])
+    k0 = 1
+    if max_leg is not None:
+        k0 = max(k0, int(np.ceil(lens.max() / max_leg)) - 1)
+    for k in range(k0, max_graphs + 1):
+        fr = np.arange(1, k + 1) / (k + 1)
+        pts = np.array([[_point_at(p, f * L) for f in fr] for p, L in zip(paths, lens)])  # (m, k, 2)
+        seq = np.concatenate([start[rows][:, None], pts, target[cols][:, None]], axis=1)
+        a = seq[:, :-1].reshape(-1, 2)
+        b = seq[:, 1:].reshape(-1, 2)
+        if np.all(problem.env.segment_clearance(a, b) >= problem.clearance) or k == max_graphs:
+            return [_repair(problem, pts[:, j]) for j in range(k)], sigma
+    return [], sigma
+
+
+def _thin(problem: Problem, pts: np.ndarray) -> np.ndarray:
+    """Keep, in order, the points that are clear and separated from those kept."""
+    keep = []
+    clear = problem.env.point_clearance(pts) >= problem.clearance
+    sep2 = problem.separation**2
+    for i, p in enumerate(pts):
+        if not clear[i]:
+            continue
+        if keep and np.min(((pts[keep] - p) ** 2).sum(axis=1)) < sep2:
+            continue
+        keep.append(i)
+    return pts[keep]
+
+
+#: CAPT (Turpin, Michael, Kumar 2014): with starts and goals at least
+#: ``sqrt(2) * d`` apart, synchronised straight lines along a minimum-sum-of-
+#: squares assignment keep every pair at least ``d`` apart.
+CAPT_FACTOR = float(np.sqrt(2.0))
+
+
+def expanded_placement(problem: Problem, pts: np.ndarray, slack: float = 1.03) -> np.ndarray | None:
+    """The placement scaled about its centre until neighbours are CAPT-spaced.
+
+    Scaling by ``f >= 1`` (plus a translation) moves every pair apart
+    monotonically, so the synchronised straight move into it never brings
+    two robots closer.  The scaled placement is shifted back inside the
+    walls if needed; ``None`` when no scaling is needed or it does not fit
+    clear of the obstacles (robots that would hit one are dropped instead
+    when only a few do).
+    """
+    pts = np.asarray(pts, float)
+    if len(pts) < 2:
+        return None
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    need = CAPT_FACTOR * problem.separation * slack
+    f = need / d.min()
+    if f <= 1.0:
+        return None
+    c = 0.5 * (pts.max(axis=0) + pts.min(axis=0))
+    out = c + f * (pts - c)
+    lo = out.min(axis=0) - problem.clearance
+    hi = out.max(axis=0) + problem.clearance
+    size = np.array([problem.width, problem.height])
+    if np.any(hi - lo > size):
+        return None
+    out = out + np.maximum(0.0, -lo) - np.maximum(0.0, hi - size)
+    return _repair(problem, out)
+
+
+def _repair(problem: Problem, pts: np.ndarray, rings: int = 4, per_ring: int = 16) -> np.ndarray:
+    """Keep the placement's points in order, moving crowded or blocked ones nearby.
+
+    A point that is not clear, or too close to one kept before it, is moved
+    to the nearest candidate on rings of growing radius around it that is
+    clear and separated; it is dropped only when none is.
+    """
+    sep = problem.separation
+    out = []
+    ang = np.arange(per_ring) * 2 * np.pi / per_ring
+    unit = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    cands = np.concatenate([[[0.0, 0.0]]] + [0.5 * sep * r * unit for r in range(1, rings + 1)])
+    for p in pts:
+        c = p + cands
+        ok = problem.env.point_clearance(c) >= problem.clearance
+        if out:
+            kept = np.asarray(out)
+            ok &= (((c[:, None] - kept[None]) ** 2).sum(axis=2) >= sep * sep).all(axis=1)
+        j = np.flatnonzero(ok)
+        if len(j):
+            out.append(c[j[0]])
+    return np.asarray(out).reshape(-1, 2)

@@ -1,0 +1,254 @@
+"""Shorter plans from the same motions: merged moves and concurrent steps.
+
+UPUMP moves one robot at a time inside a pebble graph.  Two exact
+post-passes make the plan shorter without changing what any robot does:
+
+* :func:`merge_moves` joins consecutive moves of the same robot (a pebble
+  walking along a path) into one straight move when that segment is clear
+  of the obstacles and of every other robot where it stands.
+* :func:`shortcut` replaces a robot's moves over a window of steps by one
+  straight line travelled across those steps, when that line is clear of
+  the obstacles and of every other robot at every common time parameter
+  (detours through far pebble-graph vertices disappear).
+* :func:`schedule` runs steps at the same time.  Steps are taken in plan
+  order and each goes into the earliest layer it can join: the robots it
+  moves must not move in that layer or any later one (each robot keeps the
+  order of its own moves), its motion must keep the separation from the
+  layer's motion at every common time parameter and from the robots parked
+  during the layer, and every later layer it jumps over must keep the
+  separation from its robots parked at their new positions.  Order
+  dependencies ("a robot must leave a vertex before another enters it") are
+  exactly these geometric conditions.  Joining a layer never lengthens the
+  plan: a layer lasts as long as its longest move, so the plan gains at
+  most the joined step's own duration, which appending would have cost.
+
+All checks are closed-form (:mod:`planner.geometry`); the result is a plan
+in the same contract (straight moves, one shared time scaling per step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import closest_approach, point_segment_distance
+from .problem import Problem
+
+__all__ = ["Layer", "merge_moves", "schedule", "shortcut", "steps_of"]
+
+
+def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
+    """The moving robots of each step (index arrays)."""
+    w = np.asarray(waypoints)
+    return [np.flatnonzero(np.any(w[k] != w[k + 1], axis=1)) for k in range(len(w) - 1)]
+
+
+def _segment_clear(problem: Problem, a, b, parked: np.ndarray) -> bool:
+    """A robot moving ``a -> b`` keeps clear of the world and of ``parked`` robots."""
+    if problem.env.segment_clearance(a[None], b[None])[0] < problem.clearance:
+        return False
+    if len(parked) == 0:
+        return True
+    return bool(point_segment_distance(parked, a, b).min() >= problem.separation)
+
+
+def merge_moves(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
+    """Join consecutive single-robot moves of one robot when the direct move is clear."""
+    w = np.asarray(waypoints, float)
+    if len(w) <= 2:
+        return w
+    out = [w[0]]
+    movers = steps_of(w)
+    k = 0
+    while k < len(movers):
+        cur = w[k + 1]
+        if len(movers[k]) == 1:
+            r = int(movers[k][0])
+            start = out[-1][r]
+            j = k
+            # Extend while the next step moves the same robot alone and the
+            # straight move from ``start`` stays clear.
+            while j + 1 < len(movers) and len(movers[j + 1]) == 1 and int(movers[j + 1][0]) == r:
+                end = w[j + 2][r]
+                parked = np.delete(out[-1], r, axis=0)
+                if not _segment_clear(problem, start, end, parked):
+                    break
+                j += 1
+            if j > k:
+                cur = w[j + 1]
+                k = j
+        out.append(cur)
+        k += 1
+    return np.asarray(out)
+
+
+@dataclass
+class Layer:
+    """Robots that move together: ``robots`` go from ``a`` to ``b`` (rows match)."""
+
+    robots: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+
+    @property
+    def length(self) -> float:
+        return float(np.linalg.norm(self.b - self.a, axis=1).max(initial=0.0))
+
+
+def _join_ok(problem, layer: Layer, before: np.ndarray, robots, a, b) -> bool:
+    """Can the moves ``robots: a -> b`` run during ``layer`` (positions ``before``)?"""
+    sep = problem.separation
+    if np.intersect1d(layer.robots, robots).size:
+        return False
+    d = closest_approach(a[:, None], b[:, None], layer.a[None], layer.b[None])
+    if d.min() < sep:
+        return False
+    parked = np.ones(len(before), bool)
+    parked[layer.robots] = False
+    parked[robots] = False
+    if parked.any():
+        d = point_segment_distance(before[parked][None], a[:, None], b[:, None])
+        if d.min() < sep:
+            return False
+    return True
+
+
+def _pass_ok(problem, layer: Layer, before: np.ndarray, robots, b) -> bool:
+    """Can robots parked at ``b`` stay there while ``layer`` runs?"""
+    sep = problem.separation
+    if np.intersect1d(layer.robots, robots).size:
+        return False
+    d = point_segment_distance(b[:, None], layer.a[None], layer.b[None])
+    if d.min() < sep:
+        return False
+    parked = np.ones(len(before), bool)
+    parked[layer.robots] = False
+    parked[robots] = False
+    if parked.any():
+        d = np.linalg.norm(b[:, None] - before[parked][None], axis=2)
+        if d.min() < sep:
+            return False
+    return True
+
+
+def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
+    """Earliest-layer scheduling of the steps (see the module docstring)."""
+    w = np.asarray(waypoints, float)
+    if len(w) <= 2:
+        return w
+    layers: list[Layer] = []
+    before: list[np.ndarray] = []  # positions at the start of each layer
+    pos = w[0].copy()
+    last_move = np.full(len(pos), -1)  # last layer in which each robot moves
+    for k, robots in enumerate(steps_of(w)):
+        if len(robots) == 0:
+            continue
+        a, b = w[k][robots], w[k + 1][robots]
+        floor = int(last_move[robots].max())  # cannot go at or before this layer
+        best = None
+        for j in range(len(layers) - 1, floor, -1):
+            if _join_ok(problem, layers[j], before[j], robots, a, b):
+                best = j
+            if not _pass_ok(problem, layers[j], before[j], robots, b):
+                break
+        if best is None:
+            layers.append(Layer(robots.copy(), a.copy(), b.copy()))
+            before.append(pos.copy())
+            best = len(layers) - 1
+        else:
+            lay = layers[best]
+            layers[best] = Layer(np.r_[lay.robots, robots], np.vstack([lay.a, a]), np.vstack([lay.b, b]))
+            for j in range(best + 1, len(layers)):
+                before[j][robots] = b
+        pos[robots] = b
+        last_move[robots] = best
+    out = [w[0].copy()]
+    for lay in layers:
+        nxt = out[-1].copy()
+        nxt[lay.robots] = lay.b
+        out.append(nxt)
+    return np.asarray(out)
+
+
+def _durations(problem: Problem, lengths: np.ndarray) -> np.ndarray:
+    from .plan import step_duration
+
+    return np.where(lengths > 0, step_duration(lengths, problem.max_speed, problem.max_accel), 0.0)
+
+
+def _try_shortcut(problem: Problem, w: np.ndarray, r: int, j1: int, j2: int) -> bool:
+    """Straighten robot ``r`` between waypoints ``j1`` and ``j2`` if clear and faster.
+
+    The straight displacement is shared among the steps in proportion to
+    the longest move of the *other* robots in each, so no step gets longer
+    when it fits; steps where only ``r`` moved lose that move.  Checked
+    exactly: obstacles, and the closest approach to every other robot in
+    every step of the window.  Edits ``w`` in place when accepted.
+    """
+    if j2 - j1 < 1:
+        return False
+    seg = w[j1 + 1 : j2 + 1] - w[j1:j2]  # (L, m, 2)
+    length = np.linalg.norm(seg, axis=2)  # (L, m)
+    own = length[:, r].copy()
+    if own.sum() <= 1e-12:
+        return False
+    others = np.delete(length, r, axis=1).max(axis=1, initial=0.0)  # (L,)
+    old_cost = _durations(problem, np.maximum(others, own)).sum()
+    d = w[j2, r] - w[j1, r]
+    dist = float(np.linalg.norm(d))
+    if dist >= own.sum() - 1e-9:
+        return False  # already straight
+    cap = others.sum()
+    if cap > 1e-12:
+        frac = others / cap
+    else:
+        frac = np.zeros(len(others))
+        frac[0] = 1.0
+    new_own = dist * frac
+    new_cost = _durations(problem, np.maximum(others, new_own)).sum()
+    if new_cost > old_cost - 1e-9:
+        return False
+    cum = np.concatenate([[0.0], np.cumsum(frac)])
+    ys = w[j1, r] + cum[:, None] * d  # (L + 1, 2)
+    a, b = ys[:-1], ys[1:]
+    if problem.env.segment_clearance(a, b).min() < problem.clearance:
+        return False
+    oa = np.delete(w[j1:j2], r, axis=1)  # (L, m - 1, 2)
+    ob = np.delete(w[j1 + 1 : j2 + 1], r, axis=1)
+    if oa.shape[1]:
+        dmin = closest_approach(a[:, None], b[:, None], oa, ob)
+        if dmin.min() < problem.separation:
+            return False
+    w[j1 : j2 + 1, r] = ys
+    return True
+
+
+def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.ndarray:
+    """Straighten detours robot by robot (see :func:`_try_shortcut`).
+
+    For each robot the whole plan is tried first, then its halves, quarters
+    and so on down to windows of two steps; a few passes run until nothing
+    improves.  Steps in which nobody moves any more are dropped.
+    """
+    w = np.array(waypoints, float)
+    if len(w) <= 2:
+        return w
+    for _ in range(passes):
+        improved = False
+        for r in range(w.shape[1]):
+            stack = [(0, len(w) - 1)]
+            while stack:
+                j1, j2 = stack.pop()
+                if j2 - j1 < 2:
+                    continue
+                if _try_shortcut(problem, w, r, j1, j2):
+                    improved = True
+                    continue
+                mid = (j1 + j2) // 2
+                stack.append((mid, j2))
+                stack.append((j1, mid))
+        if not improved:
+            break
+    keep = [0] + [k + 1 for k in range(len(w) - 1) if np.any(w[k + 1] != w[k])]
+    return w[keep]
