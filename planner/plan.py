@@ -227,6 +227,9 @@ class Plan:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".json", dir=path.parent)
         try:
+            mask = os.umask(0)
+            os.umask(mask)
+            os.fchmod(fd, 0o666 & ~mask)  # mkstemp makes owner-only files
             with os.fdopen(fd, "w", encoding="utf-8") as fh:
                 fh.write(self.to_json(extra))
             os.replace(tmp, path)

@@ -229,7 +229,6 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     rm.add_graph(pump(problem, problem.target, extra, rng), own)
     source = (0, rm.graphs[0].signature(own))
     goal = (1, rm.graphs[1].signature(own))
-    _add_shared(problem, rm, extra, rng)
     n = _graph_size(problem, params)
     bridge = 0.2 if problem.obstacles else 0.0
 
@@ -246,6 +245,7 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
         q = params.q if params.q is not None else 16
         g_cap = params.g  # None: unlimited
         rm.connect_pair(0, 1, q, rng)
+        _add_shared(problem, rm, extra, rng)
         _add_guided(problem, rm, extra, q, rng)
         sampled = 0
         while not connected() and time.perf_counter() < deadline and (g_cap is None or sampled < g_cap):
@@ -262,6 +262,8 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
                 q = min(2 * q, 512)
         q_used, g_used = q, sampled
     else:
+        # Fixed g and q: the paper's algorithm as it stands, g uniform graphs
+        # and q attempts between every two graphs.
         for _ in range(params.g):
             g = sample_graph()
             if g is not None:

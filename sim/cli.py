@@ -16,10 +16,6 @@ __all__ = ["main"]
 EXIT_OK, EXIT_FAIL, EXIT_INPUT = 0, 1, 2
 
 
-class InputError(Exception):
-    """Bad command-line input; ``str()`` is the one-line message."""
-
-
 def _seed_arg(value: str) -> int:
     try:
         v = int(value)
@@ -127,6 +123,37 @@ def _cmd_plan(args) -> int:
     return EXIT_OK
 
 
+def _cmd_run(args) -> int:
+    from .runner import run_scenario
+
+    result = run_scenario(
+        args.scenario,
+        seed=args.seed,
+        out_dir=args.out,
+        render=not args.no_render,
+        plan_path=args.plan,
+        time_limit=args.time_limit,
+    )
+    verdict = "ok" if result.exit_code == 0 else "FAILED"
+    print(f"  {verdict}: {_verdict_reason(result.report)}")
+    return result.exit_code
+
+
+def _verdict_reason(report: dict) -> str:
+    plan = report.get("plan") or {}
+    sim = report.get("sim") or {}
+    if not plan.get("found"):
+        return "no plan within the limits"
+    reasons = []
+    if plan.get("valid") is False:
+        reasons.append("the plan comes closer than the margin")
+    if sim.get("contacts"):
+        reasons.append(f"{sim['contacts']} contacts in the physics run")
+    if sim and not sim.get("reached"):
+        reasons.append("not every robot reached a target")
+    return "; ".join(reasons) or "zero contacts, every robot on a target"
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="swarmform",
@@ -152,12 +179,25 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("-o", "--output", help="plan JSON file (default media/NAME-plan.json)")
     pl.add_argument("--time-limit", type=_positive_float, help="override planner.time_limit [s]")
     pl.set_defaults(func=_cmd_plan)
+
+    r = sub.add_parser(
+        "run",
+        help="plan (or load a plan), validate, execute in physics, render; write DIR/NAME.json and video",
+    )
+    r.add_argument("scenario", help="scenario YAML file")
+    r.add_argument("--seed", type=_seed_arg, help="override the scenario's (or the plan file's) seed")
+    r.add_argument("--out", default="media", help="output folder (default media/)")
+    r.add_argument("--no-render", action="store_true", help="skip the video")
+    r.add_argument("--plan", help="execute this plan JSON as it is instead of planning")
+    r.add_argument("--time-limit", type=_positive_float, help="override planner.time_limit [s]")
+    r.set_defaults(func=_cmd_run)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     from planner import PlanFileError, ProblemError
 
+    from .runner import InputError
     from .scenario import ScenarioError
 
     parser = build_parser()
