@@ -32,21 +32,26 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .geometry import closest_approach
+from .geometry import closest_approach, point_segment_distance
 from .pebble import PebbleGraph
 from .plan import step_duration
 from .problem import Problem
 
-__all__ = ["Connection", "candidate_pairs", "connect", "interference_matrix"]
+__all__ = ["Connection", "candidate_pairs", "connect", "connect_sequenced", "interference_graph"]
 
 
 @dataclass(frozen=True, eq=False)
 class Connection:
-    """A simultaneous motion from graph ``a`` to graph ``b``.
+    """A motion from an ``m``-placement of graph ``a`` to one of graph ``b``.
 
     The robot on vertex ``src[k]`` of graph ``a`` moves straight to vertex
-    ``dst[k]`` of graph ``b``.  ``duration`` is the step's shortest duration
-    [s]; ``sig_a`` and ``sig_b`` are the signatures of ``src`` and ``dst``.
+    ``dst[k]`` of graph ``b``.  With ``order=None`` all move at once (the
+    paper's connections); otherwise one at a time in the order
+    ``order`` (indices into ``src``), which keeps every move clear of the
+    robots still on their sources and of those already on their
+    destinations.  ``duration`` estimates the motion's time [s] (for an
+    ordered one, its longest chain of dependent moves); ``sig_a`` and
+    ``sig_b`` are the signatures of ``src`` and ``dst``.
     """
 
     a: int
@@ -56,9 +61,11 @@ class Connection:
     duration: float
     sig_a: tuple[int, ...]
     sig_b: tuple[int, ...]
+    order: np.ndarray | None = None
 
     def reversed(self) -> "Connection":
-        return Connection(self.b, self.a, self.dst, self.src, self.duration, self.sig_b, self.sig_a)
+        order = None if self.order is None else self.order[::-1].copy()
+        return Connection(self.b, self.a, self.dst, self.src, self.duration, self.sig_b, self.sig_a, order)
 
 
 def candidate_pairs(problem: Problem, va: np.ndarray, vb: np.ndarray, k: int = 8) -> np.ndarray:
@@ -82,63 +89,89 @@ def candidate_pairs(problem: Problem, va: np.ndarray, vb: np.ndarray, k: int = 8
     return pairs[clear]
 
 
-def interference_matrix(problem: Problem, va, vb, pairs) -> np.ndarray:
-    """Dense boolean interference graph over ``pairs`` (a pair interferes with itself)."""
+def interference_graph(problem: Problem, va, vb, pairs) -> tuple[np.ndarray, np.ndarray]:
+    """The interference graph over ``pairs`` as CSR ``(indptr, indices)``.
+
+    Two pairs interfere when they share a source or a destination, or when
+    robots moving along both at once come closer than the separation
+    (closed-form closest approach; only pairs whose midpoints are near
+    enough are tested, found with a KD-tree).  Every pair interferes with
+    itself, so a chosen pair blocks itself too.
+    """
+    from scipy.sparse import coo_matrix
+
+    n = len(pairs)
+    rows, cols = [], []
+    for col in (0, 1):
+        key = pairs[:, col]
+        order = np.argsort(key, kind="stable")
+        sk = key[order]
+        starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+        sizes = np.diff(np.r_[starts, n])
+        size_of = np.repeat(sizes, sizes)  # group size of each sorted member
+        start_of = np.repeat(starts, sizes)
+        r = np.repeat(order, size_of)
+        # member k of a group of size g at start s pairs with s .. s + g - 1
+        first = np.repeat(np.cumsum(size_of) - size_of, size_of)
+        c = order[np.repeat(start_of, size_of) + (np.arange(len(r)) - first)]
+        rows.append(r)
+        cols.append(c)
     a = va[pairs[:, 0]]
     b = vb[pairs[:, 1]]
-    n = len(pairs)
-    inter = (pairs[:, None, 0] == pairs[None, :, 0]) | (pairs[:, None, 1] == pairs[None, :, 1])
-    # Only pairs whose segments pass near each other can interfere.
     mid = 0.5 * (a + b)
     half = 0.5 * np.linalg.norm(b - a, axis=1)
     reach = 2 * float(half.max(initial=0.0)) + problem.separation
     cand = cKDTree(mid).query_pairs(reach, output_type="ndarray")
     if len(cand):
         i, j = cand[:, 0], cand[:, 1]
-        d = closest_approach(a[i], b[i], a[j], b[j])
-        hit = d < problem.separation
-        inter[i[hit], j[hit]] = True
-        inter[j[hit], i[hit]] = True
-    inter[np.arange(n), np.arange(n)] = True
-    return inter
+        hit = closest_approach(a[i], b[i], a[j], b[j]) < problem.separation
+        rows += [i[hit], j[hit]]
+        cols += [j[hit], i[hit]]
+    r = np.concatenate(rows)
+    c = np.concatenate(cols)
+    m = coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(n, n)).tocsr()
+    return m.indptr, m.indices
 
 
-def _greedy_sets(inter, keys, m, comp_a=None, quota_a=None, comp_b=None, quota_b=None):
+def _greedy_sets(graph, keys, m, comp_a=None, quota_a=None, comp_b=None, quota_b=None):
     """Greedy independent sets, one per row of ``keys`` (scan order = argsort).
 
     A pair is taken when it interferes with none taken before and, where
     quotas are given, its endpoints' components still have room (so a set
     of size ``m`` has exactly the signature ``quota``).  Returns a boolean
     ``(attempts, P)`` matrix of the chosen pairs; rows stop at ``m`` pairs.
+    The scan is plain Python over a byte array (numpy marks a chosen
+    pair's neighbours in one go through a shared view).
     """
+    indptr, indices = graph
     q, p = keys.shape
-    order = np.argsort(keys, axis=1, kind="stable")
-    blocked = np.zeros((q, p), bool)
+    orders = np.argsort(keys, axis=1, kind="stable").tolist()
+    ptr = indptr.tolist()
+    ca = comp_a.tolist() if quota_a is not None else None
+    cb = comp_b.tolist() if quota_b is not None else None
     chosen = np.zeros((q, p), bool)
-    size = np.zeros(q, int)
-    rows = np.arange(q)
-    cnt_a = None if quota_a is None else np.zeros((q, len(quota_a)), int)
-    cnt_b = None if quota_b is None else np.zeros((q, len(quota_b)), int)
-    for t in range(p):
-        c = order[:, t]
-        take = ~blocked[rows, c] & (size < m)
-        if cnt_a is not None:
-            take &= cnt_a[rows, comp_a[c]] < quota_a[comp_a[c]]
-        if cnt_b is not None:
-            take &= cnt_b[rows, comp_b[c]] < quota_b[comp_b[c]]
-        if not take.any():
-            if (size >= m).all():
+    for row, order in enumerate(orders):
+        blocked = bytearray(p)
+        view = np.frombuffer(blocked, dtype=np.uint8)
+        taken = []
+        left_a = list(quota_a) if quota_a is not None else None
+        left_b = list(quota_b) if quota_b is not None else None
+        for c in order:
+            if blocked[c]:
+                continue
+            if left_a is not None and left_a[ca[c]] == 0:
+                continue
+            if left_b is not None and left_b[cb[c]] == 0:
+                continue
+            taken.append(c)
+            if len(taken) == m:
                 break
-            continue
-        r = rows[take]
-        ct = c[take]
-        chosen[r, ct] = True
-        size[r] += 1
-        blocked[r] |= inter[ct]
-        if cnt_a is not None:
-            cnt_a[r, comp_a[ct]] += 1
-        if cnt_b is not None:
-            cnt_b[r, comp_b[ct]] += 1
+            view[indices[ptr[c] : ptr[c + 1]]] = 1
+            if left_a is not None:
+                left_a[ca[c]] -= 1
+            if left_b is not None:
+                left_b[cb[c]] -= 1
+        chosen[row, taken] = True
     return chosen
 
 
@@ -202,7 +235,7 @@ def connect(
     # A connection needs m distinct sources and m distinct destinations.
     if len(np.unique(pairs[:, 0])) < m or len(np.unique(pairs[:, 1])) < m:
         return []
-    inter = interference_matrix(problem, va, vb, pairs)
+    inter = interference_graph(problem, va, vb, pairs)
     length = np.linalg.norm(vb[pairs[:, 1]] - va[pairs[:, 0]], axis=1)
     tier = np.zeros(len(pairs))
     for pref, col in ((prefer_a, 0), (prefer_b, 1)):
@@ -232,3 +265,93 @@ def connect(
         if key not in best or dur < best[key].duration:
             best[key] = Connection(a, b, src, dst, dur, key[0], key[1])
     return [best[key] for key in sorted(best)]
+
+
+def connect_sequenced(
+    problem: Problem,
+    ga: PebbleGraph,
+    gb: PebbleGraph,
+    a: int,
+    b: int,
+    src: np.ndarray,
+    dst: np.ndarray,
+) -> Connection | None:
+    """A connection that moves robots one at a time, ordered by their conflicts.
+
+    Robots on ``src`` (vertices of ``ga``) go straight to ``dst`` (vertices
+    of ``gb``) along a minimum-sum-of-squares assignment among the
+    obstacle-free segments.  Robot ``i``'s segment passing within the
+    separation of robot ``j``'s source means ``j`` must leave first; passing
+    near ``j``'s destination means ``i`` must pass before ``j`` arrives.
+    When these dependencies have no cycle, moving robots in a topological
+    order is collision-free by construction: while ``i`` moves, every other
+    robot is parked on its source or its destination, and both are clear
+    of ``i``'s segment.  Returns ``None`` when a segment is blocked for
+    every assignment or the dependencies have a cycle.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    va = ga.vertices[np.asarray(src, int)]
+    vb = gb.vertices[np.asarray(dst, int)]
+    m = len(va)
+    d = np.linalg.norm(va[:, None] - vb[None], axis=2)
+    if problem.obstacles:
+        ii, jj = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
+        ok = problem.env.segment_clearance(va[ii.ravel()], vb[jj.ravel()]) >= problem.clearance
+        cost = np.where(ok.reshape(m, m), d**2, np.inf)
+    else:
+        cost = d**2
+    big = 1e18
+    rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
+    if not np.all(np.isfinite(cost[rows, cols])):
+        return None
+    b_of = vb[cols]  # destination of robot i (row i)
+    sep = problem.separation
+    moving = np.linalg.norm(b_of - va, axis=1) > 0
+    # first[j, i]: robot j must move before robot i.
+    #   i's segment passes j's source      -> j first
+    #   i's segment passes j's destination -> i first
+    path_to_src = point_segment_distance(va[None, :, :], va[:, None, :], b_of[:, None, :])
+    path_to_dst = point_segment_distance(b_of[None, :, :], va[:, None, :], b_of[:, None, :])
+    np.fill_diagonal(path_to_src, np.inf)
+    np.fill_diagonal(path_to_dst, np.inf)
+    first = (path_to_src < sep).T | (path_to_dst < sep)
+    first &= moving[None, :] | moving[:, None]
+    order = _topological(first)
+    if order is None:
+        return None
+    dur = step_duration(np.linalg.norm(b_of - va, axis=1), problem.max_speed, problem.max_accel)
+    finish = np.zeros(m)
+    for i in order:  # longest chain of dependent moves
+        preds = np.flatnonzero(first[:, i])
+        finish[i] = (finish[preds].max() if len(preds) else 0.0) + dur[i]
+    src_sorted = np.asarray(src, int)[rows]
+    dst_sorted = np.asarray(dst, int)[cols]
+    return Connection(
+        a, b, src_sorted, dst_sorted, float(finish.max(initial=0.0)),
+        ga.signature(src_sorted), gb.signature(dst_sorted), np.asarray(order, int),
+    )
+
+
+def _topological(first: np.ndarray) -> list[int] | None:
+    """Kahn's order of ``first[j, i]`` (j before i); ``None`` on a cycle.
+
+    Among the robots free to go, the lowest index goes first, so the order
+    is deterministic.
+    """
+    import heapq
+
+    n = len(first)
+    indeg = first.sum(axis=0).astype(int).tolist()
+    succ = [np.flatnonzero(first[j]).tolist() for j in range(n)]
+    ready = [i for i in range(n) if indeg[i] == 0]
+    heapq.heapify(ready)
+    out = []
+    while ready:
+        j = heapq.heappop(ready)
+        out.append(j)
+        for i in succ[j]:
+            indeg[i] -= 1
+            if indeg[i] == 0:
+                heapq.heappush(ready, i)
+    return out if len(out) == n else None

@@ -43,14 +43,14 @@ def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
     p = np.asarray(p, float)
     a = np.asarray(a, float)
     b = np.asarray(b, float)
-    abx = b[..., 0] - a[..., 0]
-    aby = b[..., 1] - a[..., 1]
-    apx = p[..., 0] - a[..., 0]
-    apy = p[..., 1] - a[..., 1]
-    den = abx * abx + aby * aby
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(den > 0.0, (apx * abx + apy * aby) / np.where(den > 0.0, den, 1.0), 0.0)
-    t = np.clip(t, 0.0, 1.0)
+    ax, ay = a[..., 0], a[..., 1]
+    abx = b[..., 0] - ax
+    aby = b[..., 1] - ay
+    apx = p[..., 0] - ax
+    apy = p[..., 1] - ay
+    # A zero-length segment has a zero numerator too, so t = 0 there.
+    t = (apx * abx + apy * aby) / np.maximum(abx * abx + aby * aby, 1e-300)
+    t = np.minimum(np.maximum(t, 0.0), 1.0)
     dx = apx - t * abx
     dy = apy - t * aby
     return np.sqrt(dx * dx + dy * dy)
@@ -59,6 +59,17 @@ def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
 def _orient(ax, ay, bx, by, cx, cy):
     """Twice the signed area of triangle (a, b, c)."""
     return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+
+
+def _crossing(a, b, c, d) -> np.ndarray:
+    """Segments ``[a, b]`` and ``[c, d]`` cross at interior points (strictly)."""
+    ax, ay, bx, by = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
+    cx, cy, dx, dy = c[..., 0], c[..., 1], d[..., 0], d[..., 1]
+    o1 = _orient(ax, ay, bx, by, cx, cy)
+    o2 = _orient(ax, ay, bx, by, dx, dy)
+    o3 = _orient(cx, cy, dx, dy, ax, ay)
+    o4 = _orient(cx, cy, dx, dy, bx, by)
+    return (o1 * o2 < 0.0) & (o3 * o4 < 0.0)
 
 
 def segment_segment_distance(a, b, c, d) -> np.ndarray:
@@ -71,12 +82,7 @@ def segment_segment_distance(a, b, c, d) -> np.ndarray:
         np.minimum(point_segment_distance(a, c, d), point_segment_distance(b, c, d)),
         np.minimum(point_segment_distance(c, a, b), point_segment_distance(d, a, b)),
     )
-    o1 = _orient(a[..., 0], a[..., 1], b[..., 0], b[..., 1], c[..., 0], c[..., 1])
-    o2 = _orient(a[..., 0], a[..., 1], b[..., 0], b[..., 1], d[..., 0], d[..., 1])
-    o3 = _orient(c[..., 0], c[..., 1], d[..., 0], d[..., 1], a[..., 0], a[..., 1])
-    o4 = _orient(c[..., 0], c[..., 1], d[..., 0], d[..., 1], b[..., 0], b[..., 1])
-    crossing = (o1 * o2 < 0.0) & (o3 * o4 < 0.0)
-    return np.where(crossing, 0.0, dist)
+    return np.where(_crossing(a, b, c, d), 0.0, dist)
 
 
 def closest_approach(a, b, c, d, *, return_theta: bool = False):
@@ -94,10 +100,9 @@ def closest_approach(a, b, c, d, *, return_theta: bool = False):
     wy = a[..., 1] - c[..., 1]
     ux = (b[..., 0] - a[..., 0]) - (d[..., 0] - c[..., 0])
     uy = (b[..., 1] - a[..., 1]) - (d[..., 1] - c[..., 1])
-    uu = ux * ux + uy * uy
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(uu > 0.0, -(wx * ux + wy * uy) / np.where(uu > 0.0, uu, 1.0), 0.0)
-    t = np.clip(t, 0.0, 1.0)
+    # No relative motion: a zero numerator too, so theta = 0.
+    t = -(wx * ux + wy * uy) / np.maximum(ux * ux + uy * uy, 1e-300)
+    t = np.minimum(np.maximum(t, 0.0), 1.0)
     dx = wx + t * ux
     dy = wy + t * uy
     dist = np.sqrt(dx * dx + dy * dy)
@@ -198,7 +203,11 @@ class Environment:
     # -- derived arrays -------------------------------------------------------
     @property
     def edges(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """All polygon edges as ``(A (E, 2), B (E, 2), owner (E,))``; cached."""
+        """All polygon edges as ``(A (E, 2), B (E, 2), owner (E,))``; cached.
+
+        Edges are stored polygon after polygon, so per-polygon reductions
+        use ``np.*.reduceat`` at :attr:`edge_starts`.
+        """
         cached = self.__dict__.get("_edges")
         if cached is None:
             if self.polygons:
@@ -212,9 +221,27 @@ class Environment:
                 owner = np.zeros(0, int)
             cached = (a, b, owner)
             object.__setattr__(self, "_edges", cached)
+            starts = np.concatenate([[0], np.cumsum([len(p) for p in self.polygons])[:-1]]).astype(int)
+            object.__setattr__(self, "_starts", starts)
         return cached
 
-    # -- points ---------------------------------------------------------------
+    @property
+    def edge_starts(self) -> np.ndarray:
+        self.edges
+        return self.__dict__["_starts"]
+
+    def _inside(self, pts: np.ndarray) -> np.ndarray:
+        """``(N, P)`` even-odd inside test against every polygon at once."""
+        a, b, _ = self.edges
+        px = pts[:, 0:1]
+        py = pts[:, 1:2]
+        ay, by = a[None, :, 1], b[None, :, 1]
+        straddle = (ay > py) != (by > py)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            xint = a[None, :, 0] + (py - ay) * (b[None, :, 0] - a[None, :, 0]) / np.where(by != ay, by - ay, 1.0)
+        cross = (straddle & (px < xint)).astype(np.int32)
+        return (np.add.reduceat(cross, self.edge_starts, axis=1) % 2) == 1
+
     def wall_clearance(self, p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, float)
         x, y = p[..., 0], p[..., 1]
@@ -236,15 +263,16 @@ class Environment:
             better = dj < best
             best = np.where(better, dj, best)
             who = np.where(better, np.asarray(self.circle_ids)[j], who)
-        if self.polygons:
-            a, b, owner = self.edges
+        if self.polygons and n:
+            a, b, _ = self.edges
             d = point_segment_distance(pts[:, None, :], a[None], b[None])  # (n, E)
-            for i, poly in enumerate(self.polygons):
-                di = d[:, owner == i].min(axis=1)
-                di = np.where(points_in_polygon(pts, poly), 0.0, di)
-                better = di < best
-                best = np.where(better, di, best)
-                who = np.where(better, self.polygon_ids[i], who)
+            dp = np.minimum.reduceat(d, self.edge_starts, axis=1)  # (n, P)
+            dp[self._inside(pts)] = 0.0
+            j = np.argmin(dp, axis=1)
+            dj = dp[np.arange(n), j]
+            better = dj < best
+            best = np.where(better, dj, best)
+            who = np.where(better, np.asarray(self.polygon_ids)[j], who)
         return best, who
 
     def point_clearance(self, points: np.ndarray) -> np.ndarray:
@@ -280,17 +308,23 @@ class Environment:
             better = dj < best
             best = np.where(better, dj, best)
             who = np.where(better, np.asarray(self.circle_ids)[j], who)
-        if self.polygons:
-            ea, eb, owner = self.edges
-            d = segment_segment_distance(a[:, None], b[:, None], ea[None], eb[None])
-            j = np.argmin(d, axis=1)
-            dj = d[np.arange(n), j]
-            pid = np.asarray(self.polygon_ids)[owner[j]]
-            for i, poly in enumerate(self.polygons):
-                inside = points_in_polygon(a, poly)
-                dj = np.where(inside, 0.0, dj)
-                pid = np.where(inside, self.polygon_ids[i], pid)
+        if self.polygons and n:
+            ea, eb, _ = self.edges
+            # Segment to polygon edge: the distance is attained at an end of
+            # one of them; every polygon vertex starts an edge, so the
+            # vertices need one pass; a crossing makes it 0.
+            a1, b1 = a[:, None], b[:, None]
+            d = np.minimum(
+                np.minimum(point_segment_distance(a1, ea[None], eb[None]),
+                           point_segment_distance(b1, ea[None], eb[None])),
+                point_segment_distance(ea[None], a1, b1),
+            )
+            d[_crossing(a1, b1, ea[None], eb[None])] = 0.0
+            dp = np.minimum.reduceat(d, self.edge_starts, axis=1)  # (n, P)
+            dp[self._inside(a)] = 0.0
+            j = np.argmin(dp, axis=1)
+            dj = dp[np.arange(n), j]
             better = dj < best
             best = np.where(better, dj, best)
-            who = np.where(better, pid, who)
+            who = np.where(better, np.asarray(self.polygon_ids)[j], who)
         return best, who

@@ -78,6 +78,25 @@ def _visible(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return ok.reshape(len(a), len(b))
 
 
+def _corner_graph(problem: Problem):
+    """Corner points with all-pairs shortest distances and predecessors (cached)."""
+    cached = problem.__dict__.get("_corner_graph")
+    if cached is not None:
+        return cached
+    corners = corner_points(problem)
+    if len(corners) == 0:
+        cached = (corners, None, None)
+    else:
+        from scipy.sparse.csgraph import shortest_path
+
+        vis_cc = _visible(problem, corners, corners)
+        dcc = np.where(vis_cc, np.linalg.norm(corners[:, None] - corners[None], axis=2), 0.0)
+        dist_cc, pred_cc = shortest_path(dcc, directed=False, return_predecessors=True)
+        cached = (corners, np.where(np.isfinite(dist_cc), dist_cc, np.inf), pred_cc)
+    problem.__dict__["_corner_graph"] = cached
+    return cached
+
+
 def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     """Shortest obstacle-avoiding path lengths ``(m, m)`` and a path builder.
 
@@ -85,21 +104,12 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     polyline from ``starts[i]`` to ``targets[j]``; ``length`` is ``inf``
     where the visibility graph has no path.
     """
-    corners = corner_points(problem)
-    c = len(corners)
+    corners, dist_cc, pred_cc = _corner_graph(problem)
     direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
     if problem.obstacles:
         direct = np.where(_visible(problem, starts, targets), direct, np.inf)
-    if c == 0:
+    if len(corners) == 0:
         return direct, lambda i, j: np.stack([starts[i], targets[j]])
-    vis_cc = _visible(problem, corners, corners)
-    dcc = np.where(vis_cc, np.linalg.norm(corners[:, None] - corners[None], axis=2), np.inf)
-    np.fill_diagonal(dcc, 0.0)
-    from scipy.sparse.csgraph import shortest_path
-
-    dist_cc, pred_cc = shortest_path(np.where(np.isfinite(dcc), dcc, 0.0), directed=False,
-                                     return_predecessors=True)
-    dist_cc = np.where(np.isfinite(dist_cc), dist_cc, np.inf)
     dsc = np.where(_visible(problem, starts, corners), np.linalg.norm(starts[:, None] - corners[None], axis=2), np.inf)
     dct = np.where(_visible(problem, corners, targets), np.linalg.norm(corners[:, None] - targets[None], axis=2), np.inf)
     # start -> first corner -> ... -> last corner, minimised over the corners
@@ -124,13 +134,21 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     return length, path
 
 
-def _point_at(path: np.ndarray, s: float) -> np.ndarray:
-    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
-    s = float(np.clip(s, 0.0, cum[-1]))
-    k = min(int(np.searchsorted(cum, s, side="right")) - 1, len(seg) - 1)
-    u = 0.0 if seg[k] == 0 else (s - cum[k]) / seg[k]
-    return path[k] + u * (path[k + 1] - path[k])
+def _points_along(paths: list[np.ndarray], fractions: np.ndarray) -> np.ndarray:
+    """``(m, F, 2)``: the point at each fraction of each polyline's length."""
+    v = max(len(p) for p in paths)
+    pad = np.stack([np.vstack([p, np.repeat(p[-1:], v - len(p), axis=0)]) for p in paths])  # (m, V, 2)
+    seg = np.linalg.norm(np.diff(pad, axis=1), axis=2)  # (m, V-1)
+    cum = np.concatenate([np.zeros((len(paths), 1)), np.cumsum(seg, axis=1)], axis=1)  # (m, V)
+    s = fractions[None, :] * cum[:, -1:]  # (m, F)
+    k = (cum[:, None, :] <= s[:, :, None]).sum(axis=2) - 1
+    k = np.clip(k, 0, v - 2)
+    seg_k = np.take_along_axis(seg, k, axis=1)
+    u = np.where(seg_k > 0, (s - np.take_along_axis(cum, k, axis=1)) / np.maximum(seg_k, 1e-300), 0.0)
+    u = np.clip(u, 0.0, 1.0)
+    a = np.take_along_axis(pad, k[:, :, None], axis=1)
+    b = np.take_along_axis(pad, k[:, :, None] + 1, axis=1)
+    return a + u[:, :, None] * (b - a)
 
 
 def guided_placements(problem: Problem, start=None, target=None, max_leg: float | None = None,
@@ -159,7 +177,7 @@ def guided_placements(problem: Problem, start=None, target=None, max_leg: float 
         k0 = max(k0, int(np.ceil(lens.max() / max_leg)) - 1)
     for k in range(k0, max_graphs + 1):
         fr = np.arange(1, k + 1) / (k + 1)
-        pts = np.array([[_point_at(p, f * L) for f in fr] for p, L in zip(paths, lens)])  # (m, k, 2)
+        pts = _points_along(paths, fr)  # (m, k, 2)
         seq = np.concatenate([start[rows][:, None], pts, target[cols][:, None]], axis=1)
         a = seq[:, :-1].reshape(-1, 2)
         b = seq[:, 1:].reshape(-1, 2)
@@ -225,18 +243,21 @@ def _repair(problem: Problem, pts: np.ndarray, rings: int = 4, per_ring: int = 1
     to the nearest candidate on rings of growing radius around it that is
     clear and separated; it is dropped only when none is.
     """
-    sep = problem.separation
-    out = []
+    sep2 = problem.separation ** 2
+    pts = np.asarray(pts, float).reshape(-1, 2)
     ang = np.arange(per_ring) * 2 * np.pi / per_ring
     unit = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    cands = np.concatenate([[[0.0, 0.0]]] + [0.5 * sep * r * unit for r in range(1, rings + 1)])
-    for p in pts:
-        c = p + cands
-        ok = problem.env.point_clearance(c) >= problem.clearance
-        if out:
-            kept = np.asarray(out)
-            ok &= (((c[:, None] - kept[None]) ** 2).sum(axis=2) >= sep * sep).all(axis=1)
+    offsets = np.concatenate([[[0.0, 0.0]]] + [0.5 * problem.separation * r * unit for r in range(1, rings + 1)])
+    cand = pts[:, None, :] + offsets[None]  # (n, C, 2)
+    clear = (problem.env.point_clearance(cand.reshape(-1, 2)) >= problem.clearance).reshape(len(pts), -1)
+    out = np.empty((0, 2))
+    for i in range(len(pts)):
+        ok = clear[i]
+        if len(out):
+            near = ((pts[i] - out) ** 2).sum(axis=1) < (2 * rings * problem.separation) ** 2
+            if near.any():
+                ok = ok & (((cand[i][:, None] - out[near][None]) ** 2).sum(axis=2) >= sep2).all(axis=1)
         j = np.flatnonzero(ok)
         if len(j):
-            out.append(c[j[0]])
-    return np.asarray(out).reshape(-1, 2)
+            out = np.vstack([out, cand[i, j[0]]])
+    return out

@@ -10,7 +10,7 @@ from .bounds import lower_bounds
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
-from .schedule import merge_moves, schedule, shortcut
+from .schedule import merge_moves, merge_steps, schedule, shortcut
 from .upump import NoPlanFound, build_roadmap, retrieve
 from .validate import PlanInvalid, check_plan
 
@@ -35,13 +35,27 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
                                      problem.max_speed, problem.max_accel)
     else:
-        roadmap, source, goal, stats = build_roadmap(problem, params, rng, deadline)
+        timed: dict[tuple, tuple] = {}  # route -> (waypoints, sequential steps, makespan)
+
+        def evaluate(roadmap, route):
+            key = tuple(route)
+            if key not in timed:
+                timed[key] = _timed(problem, params, retrieve(problem, roadmap, route))
+            return timed[key]
+
+        roadmap, source, goal, stats = build_roadmap(
+            problem, params, rng, deadline, makespan=lambda rm, route: evaluate(rm, route)[2]
+        )
         best = None
         for route in roadmap.routes(source, goal, _ROUTES):
-            candidate, sequential = _timed(problem, params, retrieve(problem, roadmap, route))
-            if best is None or candidate.makespan < best[0].makespan:
-                best = (candidate, sequential, route)
-        result, sequential, route = best
+            waypoints, sequential, makespan = evaluate(roadmap, route)
+            if best is None or makespan < best[2]:
+                best = (waypoints, sequential, makespan, route)
+        waypoints, sequential, _, route = best
+        if params.concurrent:
+            waypoints = shortcut(problem, waypoints)
+        result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
+                                     problem.max_accel)
         stats.extra["sequential_steps"] = sequential
         stats.extra["route"] = [int(g) for g, _ in route]
     try:
@@ -59,15 +73,16 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 
 
-def _timed(problem: Problem, params: PlannerParams, waypoints) -> tuple[Plan, int]:
-    """Merge, schedule and time a retrieved route; also return its sequential step count."""
+def _timed(problem: Problem, params: PlannerParams, waypoints):
+    """Merge and schedule a retrieved route: ``(waypoints, sequential steps, makespan)``."""
     waypoints = _drop_idle(waypoints)
     sequential = len(waypoints) - 1
     waypoints = merge_moves(problem, waypoints)
     if params.concurrent:
-        waypoints = shortcut(problem, schedule(problem, waypoints))
-    plan = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed, problem.max_accel)
-    return plan, sequential
+        waypoints = merge_steps(problem, schedule(problem, waypoints))
+    makespan = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
+                                   problem.max_accel).makespan
+    return waypoints, sequential, makespan
 
 
 def _same_set(a: np.ndarray, b: np.ndarray) -> bool:

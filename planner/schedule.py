@@ -6,6 +6,11 @@ post-passes make the plan shorter without changing what any robot does:
 * :func:`merge_moves` joins consecutive moves of the same robot (a pebble
   walking along a path) into one straight move when that segment is clear
   of the obstacles and of every other robot where it stands.
+* :func:`merge_steps` joins two consecutive steps into one straight step
+  (every robot goes directly from where the first starts to where the
+  second ends) when the joined step is clear: the duration of a step is
+  subadditive in its length, so a valid merge never lengthens the plan and
+  removes a stop.
 * :func:`shortcut` replaces a robot's moves over a window of steps by one
   straight line travelled across those steps, when that line is clear of
   the obstacles and of every other robot at every common time parameter
@@ -35,7 +40,7 @@ import numpy as np
 from .geometry import closest_approach, point_segment_distance
 from .problem import Problem
 
-__all__ = ["Layer", "merge_moves", "schedule", "shortcut", "steps_of"]
+__all__ = ["Layer", "merge_moves", "merge_steps", "schedule", "shortcut", "steps_of"]
 
 
 def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
@@ -252,3 +257,32 @@ def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.nda
             break
     keep = [0] + [k + 1 for k in range(len(w) - 1) if np.any(w[k + 1] != w[k])]
     return w[keep]
+
+
+def _step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
+    """Exact check of one step in which every robot goes straight ``a -> b``."""
+    moving = np.flatnonzero(np.any(a != b, axis=1))
+    if len(moving) == 0:
+        return True
+    if problem.env.segment_clearance(a[moving], b[moving]).min() < problem.clearance:
+        return False
+    if len(a) > 1:
+        d = closest_approach(a[moving][:, None], b[moving][:, None], a[None], b[None])
+        d[np.arange(len(moving)), moving] = np.inf
+        if d.min() < problem.separation:
+            return False
+    return True
+
+
+def merge_steps(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
+    """Greedily join consecutive steps into straight ones where that is clear."""
+    w = [np.asarray(x, float) for x in waypoints]
+    if len(w) <= 2:
+        return np.asarray(w)
+    out = [w[0], w[1]]
+    for nxt in w[2:]:
+        if _step_clear(problem, out[-2], nxt):
+            out[-1] = nxt  # the last step now runs straight to ``nxt``
+        else:
+            out.append(nxt)
+    return np.asarray(out)

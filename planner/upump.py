@@ -30,7 +30,8 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
-from .connect import Connection, connect
+from .bounds import lower_bounds
+from .connect import Connection, connect, connect_sequenced
 from .guide import expanded_placement, guided_placements
 from .params import PlannerParams
 from .pebble import PebbleGraph, build_pebble_graph, sample_free_points, solve_pebbles
@@ -104,30 +105,49 @@ class Roadmap:
     def _pebble_estimate(self, c: Connection) -> float:
         """A rough time for the pebble moves around a connection (for routing).
 
-        Each end of a connection on a graph with a preferred placement costs
-        one short pebble move per robot that lands off it; on other graphs,
-        half the robots are assumed to move once.
+        On a graph with a preferred placement, the connection's vertices off
+        it are matched (minimum sum) with the preferred vertices it leaves
+        free, and each matched move is charged its own duration, as if the
+        moves ran one after another.  On other graphs, half the robots are
+        assumed to make one move across the graph's typical edge.
         """
+        from scipy.optimize import linear_sum_assignment
+
         p = self.problem
-        step = step_duration(p.separation, p.max_speed, p.max_accel)
         cost = 0.0
         for gid, verts in ((c.a, c.src), (c.b, c.dst)):
+            g = self.graphs[gid]
             pref = self.preferred[gid]
             if pref is None:
-                cost += step * p.m / 2
-            else:
-                cost += step * int(np.count_nonzero(~np.isin(verts, pref)))
+                cost += p.m / 2 * step_duration(4 * p.separation, p.max_speed, p.max_accel)
+                continue
+            off = np.setdiff1d(verts, pref)
+            free = np.setdiff1d(pref, verts)
+            if len(off) == 0 or len(free) == 0:
+                continue
+            d = np.linalg.norm(g.vertices[off][:, None] - g.vertices[free][None], axis=2)
+            r, k = linear_sum_assignment(d)
+            cost += float(np.sum(step_duration(d[r, k], p.max_speed, p.max_accel)))
         return cost
 
     def connect_pair(self, a: int, b: int, attempts: int, rng) -> int:
-        """Run CON_GEN between graphs ``a`` and ``b`` and add what it finds.
+        """Connect graphs ``a`` and ``b`` and add what is found to the roadmap.
 
-        On the start graph (0) and the target graph (1) only the start's and
-        the target's signatures are useful.
+        Between two graphs that both carry a whole preferred placement, the
+        sequenced connection between those placements comes first; when it
+        exists, the random attempts are skipped.  Otherwise CON_GEN runs.
+        On the start graph (0) and the target graph (1) only the start's
+        and the target's signatures are useful.
         """
         m = self.problem.m
         own = np.arange(m)
         need = {0: self.graphs[0].signature(own), 1: self.graphs[1].signature(own)}
+        pa, pb = self.preferred[a], self.preferred[b]
+        if pa is not None and pb is not None and len(pa) == m and len(pb) == m:
+            seq = connect_sequenced(self.problem, self.graphs[a], self.graphs[b], a, b, pa, pb)
+            if seq is not None and seq.sig_a == need.get(a, seq.sig_a) and seq.sig_b == need.get(b, seq.sig_b):
+                self.add_connections([seq])
+                return 1
         conns = connect(
             self.problem,
             self.graphs[a],
@@ -138,8 +158,8 @@ class Roadmap:
             rng,
             need_a=need.get(a),
             need_b=need.get(b),
-            prefer_a=self.preferred[a],
-            prefer_b=self.preferred[b],
+            prefer_a=pa,
+            prefer_b=pb,
         )
         self.attempts += attempts
         self.add_connections(conns)
@@ -197,14 +217,25 @@ def retrieve(problem: Problem, roadmap: Roadmap, route: list) -> list[np.ndarray
         pebble_moves(roadmap.graphs[gid], conn.src)
         nb = roadmap.graphs[conn.b]
         robots = [occ[int(s)] for s in conn.src]
-        pos = pos.copy()
-        pos[robots] = nb.vertices[conn.dst]
-        waypoints.append(pos)
+        if conn.order is None:  # everybody at once
+            pos = pos.copy()
+            pos[robots] = nb.vertices[conn.dst]
+            waypoints.append(pos)
+        else:  # one at a time, in dependency order
+            for k in conn.order:
+                pos = pos.copy()
+                pos[robots[k]] = nb.vertices[conn.dst[k]]
+                waypoints.append(pos)
         occ = {int(d): r for d, r in zip(conn.dst, robots)}
         gid = conn.b
     assert gid == 1
     pebble_moves(roadmap.graphs[1], range(m))
     return waypoints
+
+
+#: Stop adding structured graphs once a route's estimated time is within this
+#: factor of the makespan lower bound.
+_GOOD_ENOUGH = 1.2
 
 
 def _graph_size(problem: Problem, params: PlannerParams) -> int:
@@ -213,10 +244,14 @@ def _graph_size(problem: Problem, params: PlannerParams) -> int:
     return int(math.ceil(1.5 * problem.m)) + 2
 
 
-def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Generator, deadline: float):
+def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Generator, deadline: float,
+                  makespan=None):
     """Sample pebble graphs and connections until the start and target connect.
 
-    Returns ``(roadmap, source node, goal node, stats)``; raises
+    ``makespan(roadmap, route)``, when given, is the time of the plan a route
+    makes (after scheduling); in auto mode the structured stages stop once
+    the best route found is within ``_GOOD_ENOUGH`` of the makespan lower
+    bound.  Returns ``(roadmap, source node, goal node, stats)``; raises
     :class:`NoPlanFound` when they stay unconnected within the limits.
     """
     t0 = time.perf_counter()
@@ -241,12 +276,29 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     def connected():
         return rm.route(source, goal) is not None
 
+    def good_enough():
+        """The best route's plan is already near the makespan lower bound."""
+        route = rm.route(source, goal)
+        if route is None or makespan is None:
+            return False
+        return makespan(rm, route) <= _GOOD_ENOUGH * bound
+
     if params.auto:
         q = params.q if params.q is not None else 16
         g_cap = params.g  # None: unlimited
-        rm.connect_pair(0, 1, q, rng)
-        _add_shared(problem, rm, extra, rng)
-        _add_guided(problem, rm, extra, q, rng)
+        bound = lower_bounds(problem)[0]
+        # Structured candidates first, cheapest and most often best first;
+        # each is skipped once a route is already close to the bound.
+        stages = (
+            lambda: rm.connect_pair(0, 1, q, rng),
+            lambda: _add_capt(problem, rm, extra, q, rng),
+            lambda: _add_direct_chain(problem, rm, extra, q, rng),
+            lambda: _add_shared(problem, rm, extra, rng),
+        )
+        for stage in stages:
+            if good_enough() or time.perf_counter() > deadline:
+                break
+            stage()
         sampled = 0
         while not connected() and time.perf_counter() < deadline and (g_cap is None or sampled < g_cap):
             g = sample_graph()
@@ -339,14 +391,15 @@ def _add_chain(problem, rm, extra, attempts, rng, first, last, start_pts, target
     return chain
 
 
-def _add_guided(problem: Problem, rm: Roadmap, extra: int, attempts: int, rng) -> None:
-    """Guided graphs: the direct chain, and expand -> chain -> contract.
-
-    The second route first spreads the start formation out (a scaling that
-    never brings robots closer), crosses to the spread-out target along a
-    CAPT-spaced chain, and contracts into the target.
-    """
+def _add_direct_chain(problem: Problem, rm: Roadmap, extra: int, attempts: int, rng) -> None:
+    """Guided placements straight from the start to the target."""
     rm.families.append(_add_chain(problem, rm, extra, attempts, rng, 0, 1, problem.start, problem.target))
+
+
+def _add_capt(problem: Problem, rm: Roadmap, extra: int, attempts: int, rng) -> None:
+    """Expand, cross, contract: spread the start out (a scaling never brings
+    robots closer), cross to the spread-out target along a CAPT-spaced
+    chain, and contract into the target."""
     es = expanded_placement(problem, problem.start)
     et = expanded_placement(problem, problem.target)
     a = 0 if es is None else _placement_graph(problem, es, extra, rng, rm)
