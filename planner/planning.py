@@ -10,7 +10,7 @@ from .bounds import lower_bounds
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
-from .schedule import merge_moves, merge_steps, schedule, shortcut
+from .schedule import merge_moves, merge_steps, schedule, shortcut, split_moves
 from .upump import NoPlanFound, build_roadmap, retrieve
 from .validate import PlanInvalid, check_plan
 
@@ -79,7 +79,7 @@ def _timed(problem: Problem, params: PlannerParams, waypoints):
     sequential = len(waypoints) - 1
     waypoints = merge_moves(problem, waypoints)
     if params.concurrent:
-        waypoints = merge_steps(problem, schedule(problem, waypoints))
+        waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints)))
     makespan = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                    problem.max_accel).makespan
     return waypoints, sequential, makespan

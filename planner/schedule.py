@@ -40,7 +40,7 @@ import numpy as np
 from .geometry import closest_approach, point_segment_distance
 from .problem import Problem
 
-__all__ = ["Layer", "merge_moves", "merge_steps", "schedule", "shortcut", "steps_of"]
+__all__ = ["Layer", "merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", "steps_of"]
 
 
 def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
@@ -101,77 +101,85 @@ class Layer:
         return float(np.linalg.norm(self.b - self.a, axis=1).max(initial=0.0))
 
 
-def _join_ok(problem, layer: Layer, before: np.ndarray, robots, a, b) -> bool:
-    """Can the moves ``robots: a -> b`` run during ``layer`` (positions ``before``)?"""
-    sep = problem.separation
-    if np.intersect1d(layer.robots, robots).size:
-        return False
-    d = closest_approach(a[:, None], b[:, None], layer.a[None], layer.b[None])
-    if d.min() < sep:
-        return False
-    parked = np.ones(len(before), bool)
-    parked[layer.robots] = False
-    parked[robots] = False
-    if parked.any():
-        d = point_segment_distance(before[parked][None], a[:, None], b[:, None])
-        if d.min() < sep:
-            return False
-    return True
-
-
-def _pass_ok(problem, layer: Layer, before: np.ndarray, robots, b) -> bool:
-    """Can robots parked at ``b`` stay there while ``layer`` runs?"""
-    sep = problem.separation
-    if np.intersect1d(layer.robots, robots).size:
-        return False
-    d = point_segment_distance(b[:, None], layer.a[None], layer.b[None])
-    if d.min() < sep:
-        return False
-    parked = np.ones(len(before), bool)
-    parked[layer.robots] = False
-    parked[robots] = False
-    if parked.any():
-        d = np.linalg.norm(b[:, None] - before[parked][None], axis=2)
-        if d.min() < sep:
-            return False
-    return True
+def _any_by_layer(flags: np.ndarray, layer: np.ndarray, n_layers: int) -> np.ndarray:
+    """For each layer, whether any flagged item belongs to it."""
+    return np.bincount(layer[flags], minlength=n_layers)[:n_layers] > 0
 
 
 def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
-    """Earliest-layer scheduling of the steps (see the module docstring)."""
+    """Earliest-layer scheduling of the steps (see the module docstring).
+
+    Every step is checked against all the layers it could join at once:
+    its moves against each layer's moves (closest approach at a common
+    parameter) and against the robots parked during that layer, and its
+    robots' new positions against every later layer it would jump over.
+    """
     w = np.asarray(waypoints, float)
     if len(w) <= 2:
         return w
-    layers: list[Layer] = []
-    before: list[np.ndarray] = []  # positions at the start of each layer
+    m = w.shape[1]
+    sep = problem.separation
+    steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
+    total = sum(len(r) for _, r in steps)
+    mv_layer = np.zeros(total, int)  # every scheduled move: its layer, robot and segment
+    mv_robot = np.zeros(total, int)
+    mv_a = np.zeros((total, 2))
+    mv_b = np.zeros((total, 2))
+    n_mv = 0
+    before = np.zeros((len(steps) + 1, m, 2))  # positions at the start of each layer
+    moves_in = np.zeros((len(steps) + 1, m), bool)  # robot moves in layer
+    n_layers = 0
     pos = w[0].copy()
-    last_move = np.full(len(pos), -1)  # last layer in which each robot moves
-    for k, robots in enumerate(steps_of(w)):
-        if len(robots) == 0:
-            continue
+    last_move = np.full(m, -1)
+    for k, robots in steps:
         a, b = w[k][robots], w[k + 1][robots]
         floor = int(last_move[robots].max())  # cannot go at or before this layer
         best = None
-        for j in range(len(layers) - 1, floor, -1):
-            if _join_ok(problem, layers[j], before[j], robots, a, b):
-                best = j
-            if not _pass_ok(problem, layers[j], before[j], robots, b):
-                break
+        lo = floor + 1
+        if lo < n_layers:
+            L = n_layers - lo  # candidate layers lo .. n_layers - 1
+            sel = mv_layer[:n_mv] >= lo
+            la = mv_a[:n_mv][sel]
+            lb = mv_b[:n_mv][sel]
+            ll = mv_layer[:n_mv][sel] - lo
+            # join: simultaneous with the layer's moves
+            d = closest_approach(a[:, None], b[:, None], la[None], lb[None])  # (k, M)
+            join_bad = _any_by_layer((d < sep).any(axis=0), ll, L)
+            # pass: parked at b while the layer's moves run
+            d = point_segment_distance(b[:, None], la[None], lb[None])
+            pass_bad = _any_by_layer((d < sep).any(axis=0), ll, L)
+            # robots parked during each candidate layer (not moving in it, not ours)
+            parked = ~moves_in[lo:n_layers].copy()  # (L, m)
+            parked[:, robots] = False
+            bef = before[lo:n_layers]  # (L, m, 2)
+            d = point_segment_distance(bef[:, :, None, :], a[None, None], b[None, None])  # (L, m, k)
+            join_bad |= ((d < sep).any(axis=2) & parked).any(axis=1)
+            d = np.sqrt(((bef[:, :, None, :] - b[None, None]) ** 2).sum(axis=3))
+            pass_bad |= ((d < sep).any(axis=2) & parked).any(axis=1)
+            # the latest layer j such that every later layer can be passed
+            ok_after = np.ones(L, bool)  # all of layers j+1 .. end passable
+            if L > 1:
+                ok_after[:-1] = np.cumsum(pass_bad[::-1])[::-1][1:] == 0
+            cand = np.flatnonzero(~join_bad & ok_after)
+            if len(cand):
+                best = lo + int(cand[0])
         if best is None:
-            layers.append(Layer(robots.copy(), a.copy(), b.copy()))
-            before.append(pos.copy())
-            best = len(layers) - 1
+            best = n_layers
+            before[best] = pos
+            n_layers += 1
         else:
-            lay = layers[best]
-            layers[best] = Layer(np.r_[lay.robots, robots], np.vstack([lay.a, a]), np.vstack([lay.b, b]))
-            for j in range(best + 1, len(layers)):
-                before[j][robots] = b
+            before[best + 1 : n_layers, robots] = b
+        moves_in[best, robots] = True
+        j = slice(n_mv, n_mv + len(robots))
+        mv_layer[j], mv_robot[j], mv_a[j], mv_b[j] = best, robots, a, b
+        n_mv += len(robots)
         pos[robots] = b
         last_move[robots] = best
     out = [w[0].copy()]
-    for lay in layers:
+    for layer in range(n_layers):
         nxt = out[-1].copy()
-        nxt[lay.robots] = lay.b
+        sel = mv_layer[:n_mv] == layer
+        nxt[mv_robot[:n_mv][sel]] = mv_b[:n_mv][sel]
         out.append(nxt)
     return np.asarray(out)
 
@@ -285,4 +293,36 @@ def merge_steps(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
             out[-1] = nxt  # the last step now runs straight to ``nxt``
         else:
             out.append(nxt)
+    return np.asarray(out)
+
+
+def split_moves(problem: Problem, waypoints: np.ndarray, piece: float | None = None) -> np.ndarray:
+    """Cut long single-robot moves into straight pieces, so moves can overlap.
+
+    A robot that must wait for another to get out of its way can start as
+    soon as the first piece of the other's move is done, instead of after
+    the whole move (the scheduler then packs pieces of different moves into
+    common steps, and :func:`merge_steps` rejoins pieces that end up
+    consecutive and clear).  Pieces default to the length beyond which a
+    move is speed-limited, so cutting costs no time.
+    """
+    w = np.asarray(waypoints, float)
+    if piece is None:
+        # speed-limited above d*: 15/8 d / v = sqrt(10/sqrt(3) d / a)
+        piece = (10 / np.sqrt(3)) * problem.max_speed**2 / ((15 / 8) ** 2 * problem.max_accel)
+        piece = max(piece, problem.separation)
+    out = [w[0]]
+    for k in range(len(w) - 1):
+        a, b = w[k], w[k + 1]
+        moving = np.flatnonzero(np.any(a != b, axis=1))
+        if len(moving) != 1:
+            out.append(b)
+            continue
+        r = int(moving[0])
+        n = int(np.floor(np.linalg.norm(b[r] - a[r]) / piece))
+        for j in range(1, n):
+            mid = out[-1].copy()
+            mid[r] = a[r] + (j / n) * (b[r] - a[r])
+            out.append(mid)
+        out.append(b)
     return np.asarray(out)

@@ -33,6 +33,7 @@ import numpy as np
 from .bounds import lower_bounds
 from .connect import Connection, connect, connect_sequenced
 from .guide import expanded_placement, guided_placements
+from .passages import passage_points
 from .params import PlannerParams
 from .pebble import PebbleGraph, build_pebble_graph, sample_free_points, solve_pebbles
 from .plan import Plan, PlanStats, step_duration
@@ -266,12 +267,13 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     goal = (1, rm.graphs[1].signature(own))
     n = _graph_size(problem, params)
     bridge = 0.2 if problem.obstacles else 0.0
+    lanes = passage_points(problem)  # fixed vertices lining the narrow passages
 
     def sample_graph():
-        v = sample_free_points(problem, n, rng, bridge_fraction=bridge)
-        if len(v) < m:
+        v = sample_free_points(problem, n, rng, existing=lanes, bridge_fraction=bridge)
+        if len(v) + len(lanes) < m:
             return None
-        return build_pebble_graph(problem, v)
+        return build_pebble_graph(problem, np.vstack([lanes, v]))
 
     def connected():
         return rm.route(source, goal) is not None
@@ -293,7 +295,7 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
             lambda: rm.connect_pair(0, 1, q, rng),
             lambda: _add_capt(problem, rm, extra, q, rng),
             lambda: _add_direct_chain(problem, rm, extra, q, rng),
-            lambda: _add_shared(problem, rm, extra, rng),
+            lambda: _add_shared(problem, rm, extra, rng, lanes),
         )
         for stage in stages:
             if good_enough() or time.perf_counter() > deadline:
@@ -336,7 +338,7 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     return rm, source, goal, stats
 
 
-def _add_shared(problem: Problem, rm: Roadmap, extra: int, rng) -> None:
+def _add_shared(problem: Problem, rm: Roadmap, extra: int, rng, lanes: np.ndarray) -> None:
     """One pebble graph holding both the start and the target, when they are separated.
 
     It joins the start and target graphs by zero-length connections (the
@@ -349,6 +351,9 @@ def _add_shared(problem: Problem, rm: Roadmap, extra: int, rng) -> None:
     if d.min() < problem.separation:
         return
     both = np.vstack([problem.start, problem.target])
+    if len(lanes):  # narrow-passage lanes that do not crowd the placements
+        d = np.linalg.norm(lanes[:, None] - both[None], axis=2).min(axis=1)
+        both = np.vstack([both, lanes[d >= problem.separation]])
     g = pump(problem, both, extra, rng)
     gid = rm.add_graph(g, np.arange(2 * m))
     rm.families.append([gid])

@@ -1,0 +1,122 @@
+"""Narrow passages: where only one robot fits, found exactly, lined with vertices.
+
+Uniform sampling almost never puts a vertex in a gap barely wider than a
+robot (the free strip for the centre can be a tenth of a unit wide), and a
+random vertex in it would not line up with neighbours on both sides.  So
+the passages are found from the geometry instead: every pair of obstacle
+features (polygon edges, circles, the four walls) whose distance ``d``
+satisfies ``2 (r + margin) <= d < 2 (r + margin) + separation`` is a
+passage one robot at a time can use.  Its *chain* is a row of vertices,
+one separation apart, along the passage's axis (perpendicular to the
+shortest segment between the two features) through the middle of that
+segment, kept where they are clear; consecutive chain vertices make
+straight edges through the passage.  The chains are added to pebble
+graphs as fixed vertices (the bridge test in :mod:`planner.pebble` is the
+randomised version of the same idea).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .problem import Circle, Problem
+
+__all__ = ["narrow_passages", "passage_points"]
+
+
+def _features(problem: Problem):
+    """Segments ``(a, b, owner)`` of polygon edges and walls, and circles."""
+    w, h = problem.width, problem.height
+    segs = []
+    for k, ob in enumerate(problem.obstacles):
+        if isinstance(ob, Circle):
+            continue
+        v = ob.vertices
+        for i in range(len(v)):
+            segs.append((v[i], v[(i + 1) % len(v)], k))
+    corners = np.array([[0, 0], [w, 0], [w, h], [0, h]], float)
+    for i in range(4):
+        segs.append((corners[i], corners[(i + 1) % 4], -1 - i))  # each wall its own owner
+    circles = [(np.asarray(ob.center), ob.radius, k) for k, ob in enumerate(problem.obstacles)
+               if isinstance(ob, Circle)]
+    return segs, circles
+
+
+def _closest_on_segment(p, a, b):
+    ab = b - a
+    t = float(np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-300), 0.0, 1.0))
+    return a + t * ab
+
+
+def _segment_pair(a, b, c, d):
+    """Closest points of two segments (the middle of the overlap when parallel)."""
+    cands = [
+        (a, _closest_on_segment(a, c, d)),
+        (b, _closest_on_segment(b, c, d)),
+        (_closest_on_segment(c, a, b), c),
+        (_closest_on_segment(d, a, b), d),
+    ]
+    dist = np.array([np.linalg.norm(p - q) for p, q in cands])
+    best = dist.min()
+    tied = [cands[i] for i in np.flatnonzero(dist <= best + 1e-9)]
+    p = np.mean([x[0] for x in tied], axis=0)
+    q = np.mean([x[1] for x in tied], axis=0)
+    return p, q, best
+
+
+def narrow_passages(problem: Problem) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Passages as ``(middle point, unit axis)`` pairs, one robot wide."""
+    clr = problem.clearance
+    lo, hi = 2 * clr, 2 * clr + problem.separation
+    segs, circles = _features(problem)
+    found = []
+    for i in range(len(segs)):
+        a, b, oi = segs[i]
+        for j in range(i + 1, len(segs)):
+            c, d, oj = segs[j]
+            if oi == oj:
+                continue
+            p, q, dist = _segment_pair(a, b, c, d)
+            if lo <= dist < hi:
+                found.append((p, q))
+        for center, radius, _ in circles:
+            p = _closest_on_segment(center, a, b)
+            dist = np.linalg.norm(center - p) - radius
+            if lo <= dist < hi:
+                q = center + radius * (p - center) / np.linalg.norm(p - center)
+                found.append((p, q))
+    for i in range(len(circles)):
+        for j in range(i + 1, len(circles)):
+            (c1, r1, _), (c2, r2, _) = circles[i], circles[j]
+            u = (c2 - c1) / max(np.linalg.norm(c2 - c1), 1e-300)
+            p, q = c1 + r1 * u, c2 - r2 * u
+            if lo <= np.linalg.norm(q - p) < hi:
+                found.append((p, q))
+    out = []
+    for p, q in found:
+        n = q - p
+        n = n / max(np.linalg.norm(n), 1e-300)
+        out.append((0.5 * (p + q), np.array([-n[1], n[0]])))
+    return out
+
+
+def passage_points(problem: Problem, reach: int = 4) -> np.ndarray:
+    """Chain vertices of every narrow passage: the middle and ``reach`` steps each way.
+
+    Steps are a separation (plus 1 %) long; only clear points are kept, and
+    points of different chains that crowd each other are thinned (the
+    first kept wins).
+    """
+    from .geometry import greedy_separated
+
+    step = problem.separation * 1.01
+    pts = []
+    for mid, axis in narrow_passages(problem):
+        k = np.arange(-reach, reach + 1)
+        order = np.argsort(np.abs(k), kind="stable")  # middle first
+        pts.append(mid + step * k[order, None] * axis)
+    if not pts:
+        return np.zeros((0, 2))
+    pts = np.concatenate(pts)
+    pts = pts[problem.env.point_clearance(pts) >= problem.clearance]
+    return pts[greedy_separated(pts, problem.separation)]
