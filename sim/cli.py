@@ -191,6 +191,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--plan", help="execute this plan JSON as it is instead of planning")
     r.add_argument("--time-limit", type=_positive_float, help="override planner.time_limit [s]")
     r.set_defaults(func=_cmd_run)
+
+    from .tune import add_tune_parser
+
+    add_tune_parser(sub)
     return p
 
 
