@@ -295,12 +295,16 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
             lambda: rm.connect_pair(0, 1, q, rng),
             lambda: _add_capt(problem, rm, extra, q, rng),
             lambda: _add_direct_chain(problem, rm, extra, q, rng),
-            lambda: _add_shared(problem, rm, extra, rng, lanes),
         )
         for stage in stages:
             if good_enough() or time.perf_counter() > deadline:
                 break
             stage()
+        # One graph holding both placements (and the narrow-passage lanes):
+        # worth its cost where robots must file through a passage, or when
+        # nothing connects yet.
+        if (len(lanes) or not connected()) and not good_enough() and time.perf_counter() < deadline:
+            _add_shared(problem, rm, extra, rng, lanes)
         sampled = 0
         while not connected() and time.perf_counter() < deadline and (g_cap is None or sampled < g_cap):
             g = sample_graph()
@@ -314,16 +318,22 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
                     break
             if not connected() and params.q is None and sampled % 3 == 0:
                 q = min(2 * q, 512)
-        q_used, g_used = q, sampled
+        # g used: every pebble graph sampled besides the start's and the
+        # target's (structured and uniform); q used: attempts per pair.
+        q_used, g_used = q, len(rm.graphs) - 2
     else:
         # Fixed g and q: the paper's algorithm as it stands, g uniform graphs
         # and q attempts between every two graphs.
         for _ in range(params.g):
+            if time.perf_counter() > deadline:
+                break
             g = sample_graph()
             if g is not None:
                 rm.add_graph(g)
         for a in range(len(rm.graphs)):
             for b in range(a + 1, len(rm.graphs)):
+                if time.perf_counter() > deadline:
+                    break
                 rm.connect_pair(a, b, params.q, rng)
         q_used, g_used = params.q, params.g
 

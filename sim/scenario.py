@@ -531,7 +531,35 @@ def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
                 obstacles.extend(_random_obstacles(ob, s.width, s.height, rng, avoid, clearance))
             else:
                 obstacles.append(ob)
+        # m discs at the separation pack at best hexagonally: sqrt(3)/2 sep^2
+        # each, within the workspace shrunk by the wall clearance.
+        need = s.count * (np.sqrt(3) / 2) * sep**2
+        have = max(s.width - 2 * clearance + sep, 0) * max(s.height - 2 * clearance + sep, 0)
+        if need > have:
+            raise ProblemError(
+                "robots.count",
+                f"{s.count} robots need at least {need:.0f} square units at their separation; "
+                f"the {s.width:g} x {s.height:g} workspace offers {have:.0f}",
+            )
         shell = Problem(s.width, s.height, tuple(obstacles), s.radius, s.margin, np.zeros((0, 2)), np.zeros((0, 2)))
+        # Letters and lines do not depend on the generator: build them first
+        # so that one that cannot fit at any rotation fails before any
+        # random placement is drawn.
+        shapes = {}
+        reach = float(np.hypot(s.width - 2 * clearance, s.height - 2 * clearance))
+        for key in ("start", "target"):
+            spec = getattr(s, key)
+            if spec.points is None and spec.formation != "random":
+                side = spec.scale * min(s.width, s.height)
+                shape = formation_shape(spec.formation, s.count, side, sep, rng)
+                span = float(np.max(np.linalg.norm(shape[:, None] - shape[None], axis=2)))
+                if span > reach:
+                    raise ProblemError(
+                        key,
+                        f"formation {spec.formation} of {s.count} robots spans {span:.3g} and does not fit "
+                        f"the {s.width:g} x {s.height:g} workspace at any rotation; lower robots.count",
+                    )
+                shapes[key] = shape
         placed = {}
         for key in ("start", "target"):
             spec = getattr(s, key)
@@ -540,7 +568,9 @@ def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
                 check_placement(shell, pts, f"{key}.points")
             else:
                 side = spec.scale * min(s.width, s.height)
-                shape = formation_shape(spec.formation, s.count, side, sep, rng)
+                shape = shapes.get(key)
+                if shape is None:
+                    shape = formation_shape(spec.formation, s.count, side, sep, rng)
                 pts = place_formation(
                     shape,
                     shell.env,
