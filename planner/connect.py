@@ -85,7 +85,7 @@ def candidate_pairs(problem: Problem, va: np.ndarray, vb: np.ndarray, k: int = 8
         ]
     )
     pairs = np.unique(pairs, axis=0)
-    clear = problem.env.segment_clearance(va[pairs[:, 0]], vb[pairs[:, 1]]) >= problem.clearance
+    clear = problem.env.segments_clear(va[pairs[:, 0]], vb[pairs[:, 1]], problem.clearance)
     return pairs[clear]
 
 
@@ -297,7 +297,7 @@ def connect_sequenced(
     d = np.linalg.norm(va[:, None] - vb[None], axis=2)
     if problem.obstacles:
         ii, jj = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
-        ok = problem.env.segment_clearance(va[ii.ravel()], vb[jj.ravel()]) >= problem.clearance
+        ok = problem.env.segments_clear(va[ii.ravel()], vb[jj.ravel()], problem.clearance)
         cost = np.where(ok.reshape(m, m), d**2, np.inf)
     else:
         cost = d**2

@@ -284,6 +284,51 @@ class Environment:
         """Exact minimum clearance of centres moving along segments ``a -> b``."""
         return self.segment_clearance_detail(a, b)[0]
 
+    @property
+    def obstacle_boxes(self) -> np.ndarray:
+        """``(O, 4)`` bounding boxes ``xmin, ymin, xmax, ymax`` of all obstacles; cached."""
+        cached = self.__dict__.get("_boxes")
+        if cached is None:
+            boxes = [np.r_[p.min(axis=0), p.max(axis=0)] for p in self.polygons]
+            boxes += [np.r_[c - r, c + r] for c, r in zip(self.circle_centers, self.circle_radii)]
+            cached = np.asarray(boxes, float).reshape(-1, 4)
+            object.__setattr__(self, "_boxes", cached)
+        return cached
+
+    def _near_obstacles(self, lo: np.ndarray, hi: np.ndarray, clearance: float) -> np.ndarray:
+        """Which boxes ``[lo, hi]`` come within ``clearance`` of some obstacle's box."""
+        boxes = self.obstacle_boxes
+        if len(boxes) == 0:
+            return np.zeros(len(lo), bool)
+        gap_x = np.maximum(boxes[None, :, 0] - hi[:, None, 0], lo[:, None, 0] - boxes[None, :, 2])
+        gap_y = np.maximum(boxes[None, :, 1] - hi[:, None, 1], lo[:, None, 1] - boxes[None, :, 3])
+        return ((gap_x < clearance) & (gap_y < clearance)).any(axis=1)
+
+    def segments_clear(self, a: np.ndarray, b: np.ndarray, clearance: float) -> np.ndarray:
+        """Whether centres moving along ``a -> b`` keep ``clearance`` everywhere (exact).
+
+        Same answer as ``segment_clearance(a, b) >= clearance``, faster: a
+        segment whose bounding box stays ``clearance`` away from every
+        obstacle's box only needs the wall test (linear along the segment,
+        so its ends decide).
+        """
+        a = np.asarray(a, float).reshape(-1, 2)
+        b = np.asarray(b, float).reshape(-1, 2)
+        ok = np.minimum(self.wall_clearance(a), self.wall_clearance(b)) >= clearance
+        near = ok & self._near_obstacles(np.minimum(a, b), np.maximum(a, b), clearance)
+        if near.any():
+            ok[near] = self.segment_clearance(a[near], b[near]) >= clearance
+        return ok
+
+    def points_clear(self, points: np.ndarray, clearance: float) -> np.ndarray:
+        """Whether each centre keeps ``clearance`` from walls and obstacles (exact)."""
+        p = np.asarray(points, float).reshape(-1, 2)
+        ok = self.wall_clearance(p) >= clearance
+        near = ok & self._near_obstacles(p, p, clearance)
+        if near.any():
+            ok[near] = self.point_clearance(p[near]) >= clearance
+        return ok
+
     def segment_clearance_detail(self, a: np.ndarray, b: np.ndarray):
         """Exact minimum clearance along segments ``a -> b`` and what attains it.
 

@@ -65,7 +65,7 @@ def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
     pts = np.concatenate(pts)
     inside = (pts[:, 0] > 0) & (pts[:, 0] < problem.width) & (pts[:, 1] > 0) & (pts[:, 1] < problem.height)
     pts = pts[inside]
-    return pts[problem.env.point_clearance(pts) >= problem.clearance]
+    return pts[problem.env.points_clear(pts, problem.clearance)]
 
 
 def _visible(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -74,7 +74,7 @@ def _visible(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.zeros((len(a), len(b)), bool)
     aa = np.repeat(a, len(b), axis=0)
     bb = np.tile(b, (len(a), 1))
-    ok = problem.env.segment_clearance(aa, bb) >= problem.clearance
+    ok = problem.env.segments_clear(aa, bb, problem.clearance)
     return ok.reshape(len(a), len(b))
 
 
@@ -181,7 +181,7 @@ def guided_placements(problem: Problem, start=None, target=None, max_leg: float 
         seq = np.concatenate([start[rows][:, None], pts, target[cols][:, None]], axis=1)
         a = seq[:, :-1].reshape(-1, 2)
         b = seq[:, 1:].reshape(-1, 2)
-        if np.all(problem.env.segment_clearance(a, b) >= problem.clearance) or k == max_graphs:
+        if np.all(problem.env.segments_clear(a, b, problem.clearance)) or k == max_graphs:
             return [_repair(problem, pts[:, j]) for j in range(k)], sigma
     return [], sigma
 
@@ -189,7 +189,7 @@ def guided_placements(problem: Problem, start=None, target=None, max_leg: float 
 def _thin(problem: Problem, pts: np.ndarray) -> np.ndarray:
     """Keep, in order, the points that are clear and separated from those kept."""
     keep = []
-    clear = problem.env.point_clearance(pts) >= problem.clearance
+    clear = problem.env.points_clear(pts, problem.clearance)
     sep2 = problem.separation**2
     for i, p in enumerate(pts):
         if not clear[i]:
@@ -249,7 +249,7 @@ def _repair(problem: Problem, pts: np.ndarray, rings: int = 4, per_ring: int = 1
     unit = np.stack([np.cos(ang), np.sin(ang)], axis=1)
     offsets = np.concatenate([[[0.0, 0.0]]] + [0.5 * problem.separation * r * unit for r in range(1, rings + 1)])
     cand = pts[:, None, :] + offsets[None]  # (n, C, 2)
-    clear = (problem.env.point_clearance(cand.reshape(-1, 2)) >= problem.clearance).reshape(len(pts), -1)
+    clear = problem.env.points_clear(cand.reshape(-1, 2), problem.clearance).reshape(len(pts), -1)
     out = np.empty((0, 2))
     for i in range(len(pts)):
         ok = clear[i]

@@ -118,5 +118,5 @@ def passage_points(problem: Problem, reach: int = 4) -> np.ndarray:
     if not pts:
         return np.zeros((0, 2))
     pts = np.concatenate(pts)
-    pts = pts[problem.env.point_clearance(pts) >= problem.clearance]
+    pts = pts[problem.env.points_clear(pts, problem.clearance)]
     return pts[greedy_separated(pts, problem.separation)]

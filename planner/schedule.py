@@ -51,7 +51,7 @@ def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
 
 def _segment_clear(problem: Problem, a, b, parked: np.ndarray) -> bool:
     """A robot moving ``a -> b`` keeps clear of the world and of ``parked`` robots."""
-    if problem.env.segment_clearance(a[None], b[None])[0] < problem.clearance:
+    if not problem.env.segments_clear(a[None], b[None], problem.clearance)[0]:
         return False
     if len(parked) == 0:
         return True
@@ -225,7 +225,7 @@ def _try_shortcut(problem: Problem, w: np.ndarray, r: int, j1: int, j2: int) -> 
     cum = np.concatenate([[0.0], np.cumsum(frac)])
     ys = w[j1, r] + cum[:, None] * d  # (L + 1, 2)
     a, b = ys[:-1], ys[1:]
-    if problem.env.segment_clearance(a, b).min() < problem.clearance:
+    if not problem.env.segments_clear(a, b, problem.clearance).all():
         return False
     oa = np.delete(w[j1:j2], r, axis=1)  # (L, m - 1, 2)
     ob = np.delete(w[j1 + 1 : j2 + 1], r, axis=1)
@@ -272,7 +272,7 @@ def _step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
     moving = np.flatnonzero(np.any(a != b, axis=1))
     if len(moving) == 0:
         return True
-    if problem.env.segment_clearance(a[moving], b[moving]).min() < problem.clearance:
+    if not problem.env.segments_clear(a[moving], b[moving], problem.clearance).all():
         return False
     if len(a) > 1:
         d = closest_approach(a[moving][:, None], b[moving][:, None], a[None], b[None])

@@ -1,0 +1,45 @@
+"""The fast boolean clearance tests agree exactly with the exact kernels."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner.problem import Circle, Polygon, Problem
+
+
+def _world():
+    obstacles = (
+        Polygon(np.array([[12, 10], [20, 10], [20, 13], [15, 13], [15, 20], [12, 20]])),
+        Circle((28, 28), 3.0),
+        Polygon(np.array([[30, 5], [36, 5], [33, 11]])),
+    )
+    return Problem(40, 40, obstacles, 1.0, 0.1, np.zeros((0, 2)), np.zeros((0, 2)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31), st.floats(0.0, 3.0))
+def test_segments_and_points_clear_match_exact(seed, clearance):
+    rng = np.random.default_rng(seed)
+    env = _world().env
+    a = rng.uniform(-2, 42, size=(300, 2))
+    b = a + rng.normal(0, 6, size=(300, 2))
+    assert np.array_equal(env.segments_clear(a, b, clearance), env.segment_clearance(a, b) >= clearance)
+    assert np.array_equal(env.points_clear(a, clearance), env.point_clearance(a) >= clearance)
+
+
+def test_edge_planner_shortcut_agrees_with_full_test():
+    """The KD-tree rejection never changes an answer of the exact edge test."""
+    from planner.geometry import point_segment_distance
+    from planner.pebble import edge_mask, sample_free_points
+
+    p = _world()
+    rng = np.random.default_rng(4)
+    v = sample_free_points(p, 90, rng)
+    iu, ju = np.triu_indices(len(v), 1)
+    pairs = np.stack([iu, ju], axis=1)
+    fast = edge_mask(p, v, pairs)
+    d = point_segment_distance(v[None], v[iu][:, None], v[ju][:, None])
+    d[np.arange(len(iu)), iu] = np.inf
+    d[np.arange(len(iu)), ju] = np.inf
+    full = (d.min(axis=1) >= p.separation) & (p.env.segment_clearance(v[iu], v[ju]) >= p.clearance)
+    assert np.array_equal(fast, full)
