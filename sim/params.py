@@ -37,7 +37,8 @@ class RenderParams:
     fps: frames per second of the video.
     size: frame side in pixels (the longer workspace side maps to it).
     trails: draw each robot's recent path.
-    formats: any of ``gif`` and ``mp4`` (mp4 needs imageio-ffmpeg).
+    formats: any of ``gif`` and ``mp4``; mp4 is written when imageio-ffmpeg
+        is installed (the ``video`` extra) and skipped otherwise.
     speedup: sim seconds per video second, or ``None`` (auto) to fit the
         whole run into about ``video_seconds``.
     video_seconds: target video length for the automatic speed-up [s].
@@ -46,6 +47,6 @@ class RenderParams:
     fps: int = 20
     size: int = 480
     trails: bool = True
-    formats: tuple[str, ...] = ("gif",)
+    formats: tuple[str, ...] = ("gif", "mp4")
     speedup: float | None = None
     video_seconds: float = 20.0

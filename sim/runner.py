@@ -20,7 +20,7 @@ from planner import NoPlanFound, Plan, PlanFileError, PlanStats, min_clearance, 
 from planner.bounds import lower_bounds
 
 from .execute import SimReport, execute
-from .media import atomic_path, write_video
+from .media import atomic_path, has_mp4, write_video
 from .progress import ProgressBar
 from .render import render_frames
 from .scenario import Scenario, build_problem, read_scenario
@@ -128,6 +128,8 @@ def run_scenario(
         f"{sim.sim_time_s:.1f} s simulated in {sim.wall_time_s:.1f} s")
 
     media: list[Path] = []
+    if render and "mp4" in scenario.render.formats and not has_mp4():
+        say("  (no MP4: install imageio-ffmpeg, e.g. pip install -e '.[video]')")
     if render:
         frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
                                step_times=result.times, title=name)

@@ -472,8 +472,11 @@ def _read_render(r: _Reader, value) -> RenderParams:
         if fm not in ("gif", "mp4"):
             r.fail(f"render.formats[{i}]", f"unknown format {fm!r} (known: gif, mp4)")
     speed = v.get("speedup", "auto")
+    fps = r.integer(v.get("fps", d.fps), "render.fps", ge=1)
+    if fps > 50 and "gif" in formats:
+        r.fail("render.fps", f"must be <= 50 for a GIF (frame delays are whole hundredths of a second), got {fps}")
     return RenderParams(
-        fps=r.integer(v.get("fps", d.fps), "render.fps", ge=1),
+        fps=fps,
         size=r.integer(v.get("size", d.size), "render.size", ge=64),
         trails=r.boolean(v.get("trails", d.trails), "render.trails"),
         formats=tuple(dict.fromkeys(formats)),
