@@ -162,6 +162,14 @@ def points_in_polygon(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return (np.count_nonzero(cross, axis=1) % 2) == 1
 
 
+def _fold_min(best, who, d, ids):
+    """Fold distances ``(n, K)`` to K obstacles into the running minimum and its owner."""
+    j = np.argmin(d, axis=1)
+    dj = d[np.arange(len(d)), j]
+    better = dj < best
+    return np.where(better, dj, best), np.where(better, np.asarray(ids)[j], who)
+
+
 @dataclass(frozen=True, eq=False)
 class Environment:
     """The static world in array form: walls, polygon edges and circles.
@@ -258,21 +266,13 @@ class Environment:
                 np.sqrt(((pts[:, None, :] - self.circle_centers[None]) ** 2).sum(-1))
                 - self.circle_radii[None]
             )
-            j = np.argmin(d, axis=1)
-            dj = d[np.arange(n), j]
-            better = dj < best
-            best = np.where(better, dj, best)
-            who = np.where(better, np.asarray(self.circle_ids)[j], who)
+            best, who = _fold_min(best, who, d, self.circle_ids)
         if self.polygons and n:
             a, b, _ = self.edges
             d = point_segment_distance(pts[:, None, :], a[None], b[None])  # (n, E)
             dp = np.minimum.reduceat(d, self.edge_starts, axis=1)  # (n, P)
             dp[self._inside(pts)] = 0.0
-            j = np.argmin(dp, axis=1)
-            dj = dp[np.arange(n), j]
-            better = dj < best
-            best = np.where(better, dj, best)
-            who = np.where(better, np.asarray(self.polygon_ids)[j], who)
+            best, who = _fold_min(best, who, dp, self.polygon_ids)
         return best, who
 
     def point_clearance(self, points: np.ndarray) -> np.ndarray:
@@ -348,11 +348,7 @@ class Environment:
         if len(self.circle_radii):
             d = point_segment_distance(self.circle_centers[None], a[:, None], b[:, None])
             d = d - self.circle_radii[None]
-            j = np.argmin(d, axis=1)
-            dj = d[np.arange(n), j]
-            better = dj < best
-            best = np.where(better, dj, best)
-            who = np.where(better, np.asarray(self.circle_ids)[j], who)
+            best, who = _fold_min(best, who, d, self.circle_ids)
         if self.polygons and n:
             ea, eb, _ = self.edges
             # Segment to polygon edge: the distance is attained at an end of
@@ -367,9 +363,5 @@ class Environment:
             d[_crossing(a1, b1, ea[None], eb[None])] = 0.0
             dp = np.minimum.reduceat(d, self.edge_starts, axis=1)  # (n, P)
             dp[self._inside(a)] = 0.0
-            j = np.argmin(dp, axis=1)
-            dj = dp[np.arange(n), j]
-            better = dj < best
-            best = np.where(better, dj, best)
-            who = np.where(better, np.asarray(self.polygon_ids)[j], who)
+            best, who = _fold_min(best, who, dp, self.polygon_ids)
         return best, who

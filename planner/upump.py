@@ -36,7 +36,7 @@ from .guide import expanded_placement, guided_placements
 from .passages import passage_points
 from .params import PlannerParams
 from .pebble import PebbleGraph, build_pebble_graph, sample_free_points, solve_pebbles
-from .plan import Plan, PlanStats, step_duration
+from .plan import PlanStats, step_duration
 from .problem import Problem
 
 __all__ = ["NoPlanFound", "Roadmap", "build_roadmap", "pump", "retrieve"]

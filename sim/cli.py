@@ -11,29 +11,11 @@ import argparse
 import sys
 from pathlib import Path
 
+from .argtypes import int_at_least, seconds
+
 __all__ = ["main"]
 
 EXIT_OK, EXIT_FAIL, EXIT_INPUT = 0, 1, 2
-
-
-def _seed_arg(value: str) -> int:
-    try:
-        v = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {value!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {v}")
-    return v
-
-
-def _positive_float(value: str) -> float:
-    try:
-        v = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {value!r}") from None
-    if not v > 0 or v != v or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {value}")
-    return v
 
 
 def _cmd_formations(args) -> int:
@@ -168,16 +150,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("show", help="draw a scenario (start hollow, target filled) to a PNG")
     s.add_argument("scenario", help="scenario YAML file")
-    s.add_argument("--seed", type=_seed_arg, help="override the scenario's seed")
+    s.add_argument("--seed", type=int_at_least(0), help="override the scenario's seed")
     s.add_argument("-o", "--output", help="PNG file (default media/NAME-scenario.png)")
     s.add_argument("--size", type=int, default=480, help="picture side in pixels (default 480)")
     s.set_defaults(func=_cmd_show)
 
     pl = sub.add_parser("plan", help="plan a scenario and write the plan JSON (with its stats)")
     pl.add_argument("scenario", help="scenario YAML file")
-    pl.add_argument("--seed", type=_seed_arg, help="override the scenario's seed")
+    pl.add_argument("--seed", type=int_at_least(0), help="override the scenario's seed")
     pl.add_argument("-o", "--output", help="plan JSON file (default media/NAME-plan.json)")
-    pl.add_argument("--time-limit", type=_positive_float, help="override planner.time_limit [s]")
+    pl.add_argument("--time-limit", type=seconds, help="override planner.time_limit [s]")
     pl.set_defaults(func=_cmd_plan)
 
     r = sub.add_parser(
@@ -185,11 +167,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="plan (or load a plan), validate, execute in physics, render; write DIR/NAME.json and video",
     )
     r.add_argument("scenario", help="scenario YAML file")
-    r.add_argument("--seed", type=_seed_arg, help="override the scenario's (or the plan file's) seed")
+    r.add_argument("--seed", type=int_at_least(0), help="override the scenario's (or the plan file's) seed")
     r.add_argument("--out", default="media", help="output folder (default media/)")
     r.add_argument("--no-render", action="store_true", help="skip the video")
     r.add_argument("--plan", help="execute this plan JSON as it is instead of planning")
-    r.add_argument("--time-limit", type=_positive_float, help="override planner.time_limit [s]")
+    r.add_argument("--time-limit", type=seconds, help="override planner.time_limit [s]")
     r.set_defaults(func=_cmd_run)
 
     from .tune import add_tune_parser

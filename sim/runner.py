@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner import NoPlanFound, Plan, PlanFileError, PlanStats, min_clearance, plan
+from planner import NoPlanFound, Plan, PlanStats, min_clearance, plan
 from planner.bounds import lower_bounds
 
 from .execute import SimReport, execute

@@ -45,6 +45,7 @@ import numpy as np
 
 from planner import NoPlanFound, plan
 
+from .argtypes import int_at_least, seconds
 from .media import atomic_path
 from .progress import ProgressBar
 from .runner import InputError
@@ -1049,19 +1050,19 @@ def add_tune_parser(sub) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     t.add_argument("scenarios", nargs="*", metavar="SCENARIO", help="scenario YAML files")
-    t.add_argument("--g", nargs="+", type=_int_arg(1), metavar="G",
+    t.add_argument("--g", nargs="+", type=int_at_least(1), metavar="G",
                    help="pebble graph counts to try (default: each scenario's planner.g)")
-    t.add_argument("--q", nargs="+", type=_int_arg(1), metavar="Q",
+    t.add_argument("--q", nargs="+", type=int_at_least(1), metavar="Q",
                    help="connection attempts per pair of graphs to try (default: each scenario's planner.q)")
     t.add_argument("--auto", action="store_true", help="also run auto mode (g and q chosen by the planner)")
-    t.add_argument("--seeds", type=_int_arg(1), default=20, metavar="N",
+    t.add_argument("--seeds", type=int_at_least(1), default=20, metavar="N",
                    help="seeds per setting (default 20): SEED_START .. SEED_START+N-1")
-    t.add_argument("--seed-start", type=_int_arg(0), default=0, metavar="S", help="first seed (default 0)")
-    t.add_argument("--time-limit", type=_seconds_arg, metavar="S",
+    t.add_argument("--seed-start", type=int_at_least(0), default=0, metavar="S", help="first seed (default 0)")
+    t.add_argument("--time-limit", type=seconds, metavar="S",
                    help="planning time limit per run [s] (default: each scenario's planner.time_limit)")
     t.add_argument("--simulate", action="store_true",
                    help="also execute each plan in the physics world and record its verdict")
-    t.add_argument("--workers", type=_int_arg(1), metavar="N",
+    t.add_argument("--workers", type=int_at_least(1), metavar="N",
                    help="local worker processes (default: the CPU count; 1 runs in this process); "
                    "with --scheduler, the most runs in flight on the cluster")
     t.add_argument("--scheduler", metavar="ADDRESS",
@@ -1085,29 +1086,6 @@ def _one_line_error(parser: argparse.ArgumentParser) -> Callable[[str], None]:
         parser.exit(2, f"{parser.prog}: error: {message} (see {parser.prog} --help)\n")
 
     return error
-
-
-def _int_arg(low: int) -> Callable[[str], int]:
-    def parse(value: str) -> int:
-        try:
-            v = int(value)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value!r}") from None
-        if v < low:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {v}")
-        return v
-
-    return parse
-
-
-def _seconds_arg(value: str) -> float:
-    try:
-        v = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {value!r}") from None
-    if not math.isfinite(v) or v <= 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {value}")
-    return v
 
 
 def _cmd_tune(args) -> int:
