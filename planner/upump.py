@@ -234,9 +234,11 @@ def retrieve(problem: Problem, roadmap: Roadmap, route: list) -> list[np.ndarray
     return waypoints
 
 
-#: Stop adding structured graphs once a route's estimated time is within this
-#: factor of the makespan lower bound.
-_GOOD_ENOUGH = 1.2
+#: Before each structured stage (after the first), the factor of the
+#: makespan lower bound within which the best route found so far ends the
+#: search: strict before the cheap expand-cross-contract chain, looser
+#: before the costlier direct chain and shared graph.
+_GOOD_ENOUGH = (None, 1.2, 1.5, 1.5)
 
 
 def _graph_size(problem: Problem, params: PlannerParams) -> int:
@@ -251,8 +253,8 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
 
     ``makespan(roadmap, route)``, when given, is the time of the plan a route
     makes (after scheduling); in auto mode the structured stages stop once
-    the best route found is within ``_GOOD_ENOUGH`` of the makespan lower
-    bound.  Returns ``(roadmap, source node, goal node, stats)``; raises
+    the best route found is within a factor (``_GOOD_ENOUGH``) of the
+    makespan lower bound.  Returns ``(roadmap, source node, goal node, stats)``; raises
     :class:`NoPlanFound` when they stay unconnected within the limits.
     """
     t0 = time.perf_counter()
@@ -278,12 +280,12 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     def connected():
         return rm.route(source, goal) is not None
 
-    def good_enough():
-        """The best route's plan is already near the makespan lower bound."""
+    def good_enough(factor: float | None) -> bool:
+        """The best route's plan is already within ``factor`` of the lower bound."""
         route = rm.route(source, goal)
-        if route is None or makespan is None:
+        if route is None or makespan is None or factor is None:
             return False
-        return makespan(rm, route) <= _GOOD_ENOUGH * bound
+        return makespan(rm, route) <= factor * bound
 
     if params.auto:
         q = params.q if params.q is not None else 16
@@ -296,14 +298,17 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
             lambda: _add_capt(problem, rm, extra, q, rng),
             lambda: _add_direct_chain(problem, rm, extra, q, rng),
         )
-        for stage in stages:
-            if good_enough() or time.perf_counter() > deadline:
+        done = False
+        for factor, stage in zip(_GOOD_ENOUGH, stages):
+            if good_enough(factor) or time.perf_counter() > deadline:
+                done = True
                 break
             stage()
         # One graph holding both placements (and the narrow-passage lanes):
         # worth its cost where robots must file through a passage, or when
         # nothing connects yet.
-        if (len(lanes) or not connected()) and not good_enough() and time.perf_counter() < deadline:
+        if not done and (len(lanes) or not connected()) and not good_enough(_GOOD_ENOUGH[-1]) \
+                and time.perf_counter() < deadline:
             _add_shared(problem, rm, extra, rng, lanes)
         sampled = 0
         while not connected() and time.perf_counter() < deadline and (g_cap is None or sampled < g_cap):
