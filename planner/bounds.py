@@ -56,7 +56,11 @@ def bottleneck_distance(start, target) -> float:
 
 
 def lower_bounds(problem: Problem) -> tuple[float, float]:
-    """``(makespan lower bound [s], path length lower bound)`` of ``problem``."""
-    d_star = bottleneck_distance(problem.start, problem.target)
-    makespan = float(step_duration(d_star, problem.max_speed, problem.max_accel))
-    return makespan, min_sum_distance(problem.start, problem.target)
+    """``(makespan lower bound [s], path length lower bound)`` of ``problem`` (cached)."""
+    cached = problem.__dict__.get("_lower_bounds")
+    if cached is None:
+        d_star = bottleneck_distance(problem.start, problem.target)
+        makespan = float(step_duration(d_star, problem.max_speed, problem.max_accel))
+        cached = (makespan, min_sum_distance(problem.start, problem.target))
+        problem.__dict__["_lower_bounds"] = cached
+    return cached

@@ -49,9 +49,12 @@ class Connection:
     paper's connections); otherwise one at a time in the order
     ``order`` (indices into ``src``), which keeps every move clear of the
     robots still on their sources and of those already on their
-    destinations.  ``duration`` estimates the motion's time [s] (for an
-    ordered one, its longest chain of dependent moves); ``sig_a`` and
-    ``sig_b`` are the signatures of ``src`` and ``dst``.
+    destinations.  ``via``, for an ordered connection, holds each robot's
+    corner points between its source and destination (empty for a
+    straight move; ``None`` when every move is straight).  ``duration``
+    estimates the motion's time [s] (for an ordered one, its longest chain
+    of dependent moves); ``sig_a`` and ``sig_b`` are the signatures of
+    ``src`` and ``dst``.
     """
 
     a: int
@@ -62,10 +65,12 @@ class Connection:
     sig_a: tuple[int, ...]
     sig_b: tuple[int, ...]
     order: np.ndarray | None = None
+    via: tuple[np.ndarray, ...] | None = None
 
     def reversed(self) -> "Connection":
         order = None if self.order is None else self.order[::-1].copy()
-        return Connection(self.b, self.a, self.dst, self.src, self.duration, self.sig_b, self.sig_a, order)
+        via = None if self.via is None else tuple(v[::-1].copy() for v in self.via)
+        return Connection(self.b, self.a, self.dst, self.src, self.duration, self.sig_b, self.sig_a, order, via)
 
 
 def candidate_pairs(problem: Problem, va: np.ndarray, vb: np.ndarray, k: int = 8) -> np.ndarray:
@@ -275,44 +280,66 @@ def connect_sequenced(
     b: int,
     src: np.ndarray,
     dst: np.ndarray,
+    bent: bool = False,
 ) -> Connection | None:
     """A connection that moves robots one at a time, ordered by their conflicts.
 
-    Robots on ``src`` (vertices of ``ga``) go straight to ``dst`` (vertices
-    of ``gb``) along a minimum-sum-of-squares assignment among the
-    obstacle-free segments.  Robot ``i``'s segment passing within the
-    separation of robot ``j``'s source means ``j`` must leave first; passing
-    near ``j``'s destination means ``i`` must pass before ``j`` arrives.
-    When these dependencies have no cycle, moving robots in a topological
-    order is collision-free by construction: while ``i`` moves, every other
-    robot is parked on its source or its destination, and both are clear
-    of ``i``'s segment.  Returns ``None`` when a segment is blocked for
-    every assignment or the dependencies have a cycle.
+    Robots on ``src`` (vertices of ``ga``) go to ``dst`` (vertices of
+    ``gb``) along a minimum-sum-of-squares assignment: of the straight
+    segments clear of the obstacles, or with ``bent``, of shortest paths
+    (the straight segment where it is clear, else the shortest polyline
+    around the obstacles through a visibility graph of their corners,
+    every leg checked exactly).  Robot ``i``'s path passing within
+    the separation of robot ``j``'s source means ``j`` must leave first;
+    passing near ``j``'s destination means ``i`` must pass before ``j``
+    arrives.  When these dependencies have no cycle, moving robots in a
+    topological order, each along its whole path, is collision-free by
+    construction: while ``i`` moves, every other robot is parked on its
+    source or its destination, and both are clear of ``i``'s path.
+    Returns ``None`` when some robot has no path or the dependencies have a
+    cycle.
     """
     from scipy.optimize import linear_sum_assignment
+
+    from .guide import shortest_paths
 
     va = ga.vertices[np.asarray(src, int)]
     vb = gb.vertices[np.asarray(dst, int)]
     m = len(va)
-    d = np.linalg.norm(va[:, None] - vb[None], axis=2)
-    if problem.obstacles:
+    length = np.linalg.norm(va[:, None] - vb[None], axis=2)
+    path_of = None
+    if bent and problem.obstacles:
+        length, path_of = shortest_paths(problem, va, vb)
+    elif problem.obstacles:
         ii, jj = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
         ok = problem.env.segments_clear(va[ii.ravel()], vb[jj.ravel()], problem.clearance)
-        cost = np.where(ok.reshape(m, m), d**2, np.inf)
-    else:
-        cost = d**2
+        length = np.where(ok.reshape(m, m), length, np.inf)
     big = 1e18
-    rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
-    if not np.all(np.isfinite(cost[rows, cols])):
+    cost = np.where(np.isfinite(length), length**2, big)
+    rows, cols = linear_sum_assignment(cost)
+    if not np.all(np.isfinite(length[rows, cols])):
         return None
-    b_of = vb[cols]  # destination of robot i (row i)
+    if path_of is None:
+        paths = [np.stack([va[i], vb[j]]) for i, j in zip(rows, cols)]
+    else:
+        paths = [path_of(int(i), int(j)) for i, j in zip(rows, cols)]
+    # Pad the polylines to one length (repeating the last point adds
+    # zero-length legs) so that distances to them are computed at once.
+    legs = max(len(p) for p in paths) - 1
+    pad = np.stack([np.vstack([p, np.repeat(p[-1:], legs + 1 - len(p), axis=0)]) for p in paths])
+    pa, pb = pad[:, :-1], pad[:, 1:]  # (m, legs, 2)
     sep = problem.separation
-    moving = np.linalg.norm(b_of - va, axis=1) > 0
+    b_of = vb[cols]
+    moving = np.linalg.norm(pb - pa, axis=2).sum(axis=1) > 0
+
+    def to_paths(points):  # (m points) -> (m paths, m points) distance
+        return point_segment_distance(points[None, None], pa[:, :, None], pb[:, :, None]).min(axis=1)
+
     # first[j, i]: robot j must move before robot i.
-    #   i's segment passes j's source      -> j first
-    #   i's segment passes j's destination -> i first
-    path_to_src = point_segment_distance(va[None, :, :], va[:, None, :], b_of[:, None, :])
-    path_to_dst = point_segment_distance(b_of[None, :, :], va[:, None, :], b_of[:, None, :])
+    #   i's path passes j's source      -> j first
+    #   i's path passes j's destination -> i first
+    path_to_src = to_paths(va)
+    path_to_dst = to_paths(b_of)
     np.fill_diagonal(path_to_src, np.inf)
     np.fill_diagonal(path_to_dst, np.inf)
     first = (path_to_src < sep).T | (path_to_dst < sep)
@@ -320,16 +347,18 @@ def connect_sequenced(
     order = _topological(first)
     if order is None:
         return None
-    dur = step_duration(np.linalg.norm(b_of - va, axis=1), problem.max_speed, problem.max_accel)
+    dur = step_duration(np.linalg.norm(pb - pa, axis=2), problem.max_speed, problem.max_accel).sum(axis=1)
     finish = np.zeros(m)
     for i in order:  # longest chain of dependent moves
         preds = np.flatnonzero(first[:, i])
         finish[i] = (finish[preds].max() if len(preds) else 0.0) + dur[i]
     src_sorted = np.asarray(src, int)[rows]
     dst_sorted = np.asarray(dst, int)[cols]
+    has_via = any(len(p) > 2 for p in paths)
     return Connection(
         a, b, src_sorted, dst_sorted, float(finish.max(initial=0.0)),
         ga.signature(src_sorted), gb.signature(dst_sorted), np.asarray(order, int),
+        tuple(p[1:-1] for p in paths) if has_via else None,
     )
 
 

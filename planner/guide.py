@@ -152,15 +152,15 @@ def _points_along(paths: list[np.ndarray], fractions: np.ndarray) -> np.ndarray:
 
 
 def guided_placements(problem: Problem, start=None, target=None, max_leg: float | None = None,
-                      max_graphs: int = 8):
+                      max_graphs: int = 4):
     """Intermediate placements along the assigned shortest paths.
 
     ``start`` and ``target`` default to the problem's placements.
     Returns a list of ``(k_points, 2)`` arrays (each already thinned to
     separated, clear points) and the assignment ``sigma`` (start ``i`` is
     guided to ``target[sigma[i]]``; -1 when unmatched).  ``k`` is the
-    smallest count whose straight legs all stay clear of the obstacles,
-    with at least one placement when the straight motion is blocked.
+    smallest count (at most ``max_graphs``) whose straight legs all stay
+    clear of the obstacles; none when no such count exists.
     """
     start = problem.start if start is None else np.asarray(start, float)
     target = problem.target if target is None else np.asarray(target, float)
@@ -181,7 +181,7 @@ def guided_placements(problem: Problem, start=None, target=None, max_leg: float 
         seq = np.concatenate([start[rows][:, None], pts, target[cols][:, None]], axis=1)
         a = seq[:, :-1].reshape(-1, 2)
         b = seq[:, 1:].reshape(-1, 2)
-        if np.all(problem.env.segments_clear(a, b, problem.clearance)) or k == max_graphs:
+        if np.all(problem.env.segments_clear(a, b, problem.clearance)):
             return [_repair(problem, pts[:, j]) for j in range(k)], sigma
     return [], sigma
 

@@ -65,24 +65,32 @@ def _segment_pair(a, b, c, d):
 
 
 def narrow_passages(problem: Problem) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Passages as ``(middle point, unit axis)`` pairs, one robot wide."""
+    """Passages as ``(middle point, unit axis)`` pairs, one robot wide.
+
+    Distances between all feature pairs are computed at once (exact,
+    vectorised); closest points are worked out only for the pairs in range.
+    """
+    from .geometry import point_segment_distance, segment_segment_distance
+
     clr = problem.clearance
     lo, hi = 2 * clr, 2 * clr + problem.separation
     segs, circles = _features(problem)
     found = []
-    for i in range(len(segs)):
-        a, b, oi = segs[i]
-        for j in range(i + 1, len(segs)):
-            c, d, oj = segs[j]
-            if oi == oj:
-                continue
-            p, q, dist = _segment_pair(a, b, c, d)
-            if lo <= dist < hi:
-                found.append((p, q))
+    if segs:
+        a = np.array([x[0] for x in segs], float)
+        b = np.array([x[1] for x in segs], float)
+        owner = np.array([x[2] for x in segs])
+        i, j = np.triu_indices(len(segs), 1)
+        keep = owner[i] != owner[j]
+        i, j = i[keep], j[keep]
+        d = segment_segment_distance(a[i], b[i], a[j], b[j])
+        for k in np.flatnonzero((d >= lo) & (d < hi)):
+            p, q, _ = _segment_pair(a[i[k]], b[i[k]], a[j[k]], b[j[k]])
+            found.append((p, q))
         for center, radius, _ in circles:
-            p = _closest_on_segment(center, a, b)
-            dist = np.linalg.norm(center - p) - radius
-            if lo <= dist < hi:
+            d = point_segment_distance(center[None], a, b) - radius
+            for k in np.flatnonzero((d >= lo) & (d < hi)):
+                p = _closest_on_segment(center, a[k], b[k])
                 q = center + radius * (p - center) / np.linalg.norm(p - center)
                 found.append((p, q))
     for i in range(len(circles)):
@@ -109,6 +117,9 @@ def passage_points(problem: Problem, reach: int = 4) -> np.ndarray:
     """
     from .geometry import greedy_separated
 
+    cached = problem.__dict__.get(f"_lanes_{reach}")
+    if cached is not None:
+        return cached
     step = problem.separation * 1.01
     pts = []
     for mid, axis in narrow_passages(problem):
@@ -116,7 +127,10 @@ def passage_points(problem: Problem, reach: int = 4) -> np.ndarray:
         order = np.argsort(np.abs(k), kind="stable")  # middle first
         pts.append(mid + step * k[order, None] * axis)
     if not pts:
-        return np.zeros((0, 2))
-    pts = np.concatenate(pts)
-    pts = pts[problem.env.points_clear(pts, problem.clearance)]
-    return pts[greedy_separated(pts, problem.separation)]
+        out = np.zeros((0, 2))
+    else:
+        pts = np.concatenate(pts)
+        pts = pts[problem.env.points_clear(pts, problem.clearance)]
+        out = pts[greedy_separated(pts, problem.separation)]
+    problem.__dict__[f"_lanes_{reach}"] = out
+    return out

@@ -145,10 +145,15 @@ class Roadmap:
         need = {0: self.graphs[0].signature(own), 1: self.graphs[1].signature(own)}
         pa, pb = self.preferred[a], self.preferred[b]
         if pa is not None and pb is not None and len(pa) == m and len(pb) == m:
-            seq = connect_sequenced(self.problem, self.graphs[a], self.graphs[b], a, b, pa, pb)
-            if seq is not None and seq.sig_a == need.get(a, seq.sig_a) and seq.sig_b == need.get(b, seq.sig_b):
-                self.add_connections([seq])
-                return 1
+            # Straight moves; for a pair touching the start or the target,
+            # also moves around the obstacles (guided chain legs are chosen
+            # straight already).
+            bends = (False, True) if self.problem.obstacles and (a in need or b in need) else (False,)
+            for bent in bends:
+                seq = connect_sequenced(self.problem, self.graphs[a], self.graphs[b], a, b, pa, pb, bent)
+                if seq is not None and seq.sig_a == need.get(a, seq.sig_a) and seq.sig_b == need.get(b, seq.sig_b):
+                    self.add_connections([seq])
+                    return 1
         conns = connect(
             self.problem,
             self.graphs[a],
@@ -222,11 +227,13 @@ def retrieve(problem: Problem, roadmap: Roadmap, route: list) -> list[np.ndarray
             pos = pos.copy()
             pos[robots] = nb.vertices[conn.dst]
             waypoints.append(pos)
-        else:  # one at a time, in dependency order
+        else:  # one at a time, in dependency order, leg by leg around obstacles
             for k in conn.order:
-                pos = pos.copy()
-                pos[robots[k]] = nb.vertices[conn.dst[k]]
-                waypoints.append(pos)
+                legs = [] if conn.via is None else list(conn.via[k])
+                for point in legs + [nb.vertices[conn.dst[k]]]:
+                    pos = pos.copy()
+                    pos[robots[k]] = point
+                    waypoints.append(pos)
         occ = {int(d): r for d, r in zip(conn.dst, robots)}
         gid = conn.b
     assert gid == 1
@@ -238,7 +245,7 @@ def retrieve(problem: Problem, roadmap: Roadmap, route: list) -> list[np.ndarray
 #: makespan lower bound within which the best route found so far ends the
 #: search: strict before the cheap expand-cross-contract chain, looser
 #: before the costlier direct chain and shared graph.
-_GOOD_ENOUGH = (None, 1.2, 1.5, 1.5)
+_GOOD_ENOUGH = (None, 1.5, 1.5, 1.5)
 
 
 def _graph_size(problem: Problem, params: PlannerParams) -> int:
@@ -269,9 +276,8 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     goal = (1, rm.graphs[1].signature(own))
     n = _graph_size(problem, params)
     bridge = 0.2 if problem.obstacles else 0.0
-    lanes = passage_points(problem)  # fixed vertices lining the narrow passages
-
     def sample_graph():
+        lanes = passage_points(problem)  # fixed vertices lining the narrow passages
         v = sample_free_points(problem, n, rng, existing=lanes, bridge_fraction=bridge)
         if len(v) + len(lanes) < m:
             return None
@@ -307,9 +313,10 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
         # One graph holding both placements (and the narrow-passage lanes):
         # worth its cost where robots must file through a passage, or when
         # nothing connects yet.
-        if not done and (len(lanes) or not connected()) and not good_enough(_GOOD_ENOUGH[-1]) \
-                and time.perf_counter() < deadline:
-            _add_shared(problem, rm, extra, rng, lanes)
+        if not done and not good_enough(_GOOD_ENOUGH[-1]) and time.perf_counter() < deadline:
+            lanes = passage_points(problem)
+            if len(lanes) or not connected():
+                _add_shared(problem, rm, extra, rng, lanes)
         sampled = 0
         while not connected() and time.perf_counter() < deadline and (g_cap is None or sampled < g_cap):
             g = sample_graph()
