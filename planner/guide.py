@@ -102,8 +102,18 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
 
     Returns ``(length, path)`` where ``path(i, j)`` is the ``(p, 2)``
     polyline from ``starts[i]`` to ``targets[j]``; ``length`` is ``inf``
-    where the visibility graph has no path.
+    where the visibility graph has no path.  Results are remembered per
+    problem and pair of placements.
     """
+    key = (np.ascontiguousarray(starts, float).tobytes(), np.ascontiguousarray(targets, float).tobytes())
+    memo = problem.__dict__.setdefault("_shortest_paths", {})
+    if key in memo:
+        return memo[key]
+    memo[key] = result = _shortest_paths(problem, np.asarray(starts, float), np.asarray(targets, float))
+    return result
+
+
+def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     corners, dist_cc, pred_cc = _corner_graph(problem)
     direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
     if problem.obstacles:
