@@ -23,7 +23,7 @@ import numpy as np
 
 __all__ = ["main", "run"]
 
-DEFAULT = ["scenarios/paper/*.yaml", "scenarios/harder/*m20.yaml"]
+DEFAULT = ["scenarios/paper/*.yaml", "scenarios/harder/*.yaml"]
 
 
 def run(paths: list[str], seeds: int, time_limit: float, modes=("paper", "auto"), progress=None) -> list[dict]:
