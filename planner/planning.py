@@ -51,16 +51,9 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
             waypoints, sequential, makespan = evaluate(roadmap, route)
             if best is None or makespan < best[2]:
                 best = (waypoints, sequential, makespan, route)
-        _, sequential, _, route = best
-        waypoints = _drop_idle(retrieve(problem, roadmap, route))
-        if params.concurrent:  # the full treatment, for the chosen route only
-            waypoints = merge_moves(problem, waypoints)
-            waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints)))
+        waypoints, sequential, _, route = best
+        if params.concurrent:
             waypoints = shortcut(problem, waypoints)
-            if _makespan(problem, waypoints) > best[2]:  # splitting did not pay here
-                waypoints = shortcut(problem, best[0])
-        else:
-            waypoints = merge_moves(problem, waypoints)
         result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                      problem.max_accel)
         stats.extra["sequential_steps"] = sequential
@@ -81,17 +74,17 @@ _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plu
 
 
 def _timed(problem: Problem, params: PlannerParams, waypoints):
-    """Merge and schedule a retrieved route: ``(waypoints, sequential steps, makespan)``.
+    """Merge, cut, schedule and merge again: ``(waypoints, sequential steps, makespan)``.
 
-    This is the quick version used to compare routes; the chosen route is
-    then cut into pieces and scheduled again, which lets waiting robots
-    start earlier.
+    Long moves are cut into speed-limited pieces before scheduling, which
+    lets a robot waiting for another start while the other is still on its
+    way; the chosen route's plan is then straightened by :func:`shortcut`.
     """
     waypoints = _drop_idle(waypoints)
     sequential = len(waypoints) - 1
     waypoints = merge_moves(problem, waypoints)
     if params.concurrent:
-        waypoints = merge_steps(problem, schedule(problem, waypoints))
+        waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints)))
     return waypoints, sequential, _makespan(problem, waypoints)
 
 
