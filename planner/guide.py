@@ -196,20 +196,6 @@ def guided_placements(problem: Problem, start=None, target=None, max_leg: float 
     return [], sigma
 
 
-def _thin(problem: Problem, pts: np.ndarray) -> np.ndarray:
-    """Keep, in order, the points that are clear and separated from those kept."""
-    keep = []
-    clear = problem.env.points_clear(pts, problem.clearance)
-    sep2 = problem.separation**2
-    for i, p in enumerate(pts):
-        if not clear[i]:
-            continue
-        if keep and np.min(((pts[keep] - p) ** 2).sum(axis=1)) < sep2:
-            continue
-        keep.append(i)
-    return pts[keep]
-
-
 #: CAPT (Turpin, Michael, Kumar 2014): with starts and goals at least
 #: ``sqrt(2) * d`` apart, synchronised straight lines along a minimum-sum-of-
 #: squares assignment keep every pair at least ``d`` apart.

@@ -33,14 +33,12 @@ in the same contract (straight moves, one shared time scaling per step).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .geometry import closest_approach, point_segment_distance
 from .problem import Problem
 
-__all__ = ["Layer", "merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", "steps_of"]
+__all__ = ["merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", "steps_of"]
 
 
 def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
@@ -86,19 +84,6 @@ def merge_moves(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
         out.append(cur)
         k += 1
     return np.asarray(out)
-
-
-@dataclass
-class Layer:
-    """Robots that move together: ``robots`` go from ``a`` to ``b`` (rows match)."""
-
-    robots: np.ndarray
-    a: np.ndarray
-    b: np.ndarray
-
-    @property
-    def length(self) -> float:
-        return float(np.linalg.norm(self.b - self.a, axis=1).max(initial=0.0))
 
 
 def _any_by_layer(flags: np.ndarray, layer: np.ndarray, n_layers: int) -> np.ndarray:
