@@ -36,23 +36,44 @@ def min_sum_distance(start, target) -> float:
 def bottleneck_distance(start, target) -> float:
     """Minimum over assignments of the longest straight-line distance.
 
-    Binary search over the sorted distinct distances, each tested with a
-    maximum bipartite matching on the pairs no longer than the candidate.
+    Binary search over the sorted distinct distances, each tested for a
+    perfect matching on the pairs no longer than the candidate.
+    The search is confined to ``[L, U]``: every robot must reach some
+    target and every target be reached, so the answer is at least the
+    largest row or column minimum ``L``; the minimum-sum assignment is one
+    assignment, so its longest distance ``U`` bounds it from above.
     """
     d = _distances(start, target)
     m = len(d)
     if m == 0:
         return 0.0
-    values = np.unique(d)
+    low = max(float(d.min(axis=1).max()), float(d.min(axis=0).max()))
+    if m <= 64:
+        r, c = linear_sum_assignment(d)
+        high = float(d[r, c].max())
+    else:  # the assignment costs more than the searches it saves
+        high = float(d.max())
+    values = np.unique(d[(d >= low) & (d <= high)])
     lo, hi = 0, len(values) - 1
     while lo < hi:
         mid = (lo + hi) // 2
-        match = maximum_bipartite_matching(csr_matrix(d <= values[mid]), perm_type="column")
-        if np.all(match >= 0):
+        if _perfect(d <= values[mid]):
             hi = mid
         else:
             lo = mid + 1
     return float(values[lo])
+
+
+def _perfect(allowed: np.ndarray) -> bool:
+    """Whether the bipartite graph of ``allowed`` pairs has a perfect matching.
+
+    Small graphs: a zero-cost assignment (scipy's LAP solver has the least
+    overhead); large ones: Hopcroft-Karp on the sparse graph.
+    """
+    if len(allowed) <= 64:
+        r, c = linear_sum_assignment(~allowed)
+        return bool(allowed[r, c].all())
+    return bool(np.all(maximum_bipartite_matching(csr_matrix(allowed), perm_type="column") >= 0))
 
 
 def lower_bounds(problem: Problem) -> tuple[float, float]:

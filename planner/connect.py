@@ -37,7 +37,15 @@ from .pebble import PebbleGraph
 from .plan import step_duration
 from .problem import Problem
 
-__all__ = ["Connection", "candidate_pairs", "connect", "connect_sequenced", "interference_graph"]
+__all__ = [
+    "Connection",
+    "Sequenced",
+    "candidate_pairs",
+    "connect",
+    "connect_sequenced",
+    "interference_graph",
+    "sequenced_moves",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -272,20 +280,38 @@ def connect(
     return [best[key] for key in sorted(best)]
 
 
-def connect_sequenced(
-    problem: Problem,
-    ga: PebbleGraph,
-    gb: PebbleGraph,
-    a: int,
-    b: int,
-    src: np.ndarray,
-    dst: np.ndarray,
-    bent: bool = False,
-) -> Connection | None:
-    """A connection that moves robots one at a time, ordered by their conflicts.
+@dataclass(frozen=True, eq=False)
+class Sequenced:
+    """Robots moved one at a time from placement ``va`` to placement ``vb``.
 
-    Robots on ``src`` (vertices of ``ga``) go to ``dst`` (vertices of
-    ``gb``) along a minimum-sum-of-squares assignment: of the straight
+    Robot on ``va[rows[k]]`` goes to ``vb[cols[k]]`` along ``paths[k]`` (a
+    polyline from source to destination); ``order`` lists ``k`` in the
+    order the moves run; ``duration`` is the longest chain of dependent
+    moves (what the moves take when independent ones overlap).
+    """
+
+    rows: np.ndarray
+    cols: np.ndarray
+    paths: tuple
+    order: np.ndarray
+    duration: float
+
+    def waypoints(self, positions: np.ndarray, robots) -> list[np.ndarray]:
+        """The steps, leg by leg, that move ``robots[k]`` (rows of ``positions``) in order."""
+        pos = np.array(positions, float)
+        out = []
+        for k in self.order:
+            for point in self.paths[k][1:]:
+                pos = pos.copy()
+                pos[robots[k]] = point
+                out.append(pos)
+        return out
+
+
+def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool = False) -> Sequenced | None:
+    """Move the robots on ``va`` to ``vb`` one at a time, ordered by their conflicts.
+
+    Robots go along a minimum-sum-of-squares assignment: of the straight
     segments clear of the obstacles, or with ``bent``, of shortest paths
     (the straight segment where it is clear, else the shortest polyline
     around the obstacles through a visibility graph of their corners,
@@ -303,8 +329,8 @@ def connect_sequenced(
 
     from .guide import shortest_paths
 
-    va = ga.vertices[np.asarray(src, int)]
-    vb = gb.vertices[np.asarray(dst, int)]
+    va = np.asarray(va, float)
+    vb = np.asarray(vb, float)
     m = len(va)
     length = np.linalg.norm(va[:, None] - vb[None], axis=2)
     path_of = None
@@ -352,13 +378,30 @@ def connect_sequenced(
     for i in order:  # longest chain of dependent moves
         preds = np.flatnonzero(first[:, i])
         finish[i] = (finish[preds].max() if len(preds) else 0.0) + dur[i]
-    src_sorted = np.asarray(src, int)[rows]
-    dst_sorted = np.asarray(dst, int)[cols]
-    has_via = any(len(p) > 2 for p in paths)
+    return Sequenced(rows, cols, tuple(paths), np.asarray(order, int), float(finish.max(initial=0.0)))
+
+
+def connect_sequenced(
+    problem: Problem,
+    ga: PebbleGraph,
+    gb: PebbleGraph,
+    a: int,
+    b: int,
+    src: np.ndarray,
+    dst: np.ndarray,
+    bent: bool = False,
+) -> Connection | None:
+    """A connection from vertices ``src`` of ``ga`` to ``dst`` of ``gb`` by :func:`sequenced_moves`."""
+    seq = sequenced_moves(problem, ga.vertices[np.asarray(src, int)], gb.vertices[np.asarray(dst, int)], bent)
+    if seq is None:
+        return None
+    src_sorted = np.asarray(src, int)[seq.rows]
+    dst_sorted = np.asarray(dst, int)[seq.cols]
+    has_via = any(len(p) > 2 for p in seq.paths)
     return Connection(
-        a, b, src_sorted, dst_sorted, float(finish.max(initial=0.0)),
-        ga.signature(src_sorted), gb.signature(dst_sorted), np.asarray(order, int),
-        tuple(p[1:-1] for p in paths) if has_via else None,
+        a, b, src_sorted, dst_sorted, seq.duration,
+        ga.signature(src_sorted), gb.signature(dst_sorted), seq.order,
+        tuple(p[1:-1] for p in seq.paths) if has_via else None,
     )
 
 

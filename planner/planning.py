@@ -11,7 +11,8 @@ from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
 from .schedule import merge_moves, merge_steps, schedule, shortcut, split_moves
-from .upump import NoPlanFound, build_roadmap, retrieve
+from .connect import sequenced_moves
+from .upump import _GOOD_ENOUGH, NoPlanFound, build_roadmap, retrieve
 from .validate import PlanInvalid, check_plan
 
 __all__ = ["NoPlanFound", "plan"]
@@ -34,13 +35,23 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
                                      problem.max_speed, problem.max_accel)
+    elif (direct := _direct(problem, params, memo := {})) is not None:
+        waypoints, sequential = direct
+        if params.concurrent:
+            waypoints = shortcut(problem, waypoints)
+        result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
+                                     problem.max_accel)
+        stats = PlanStats(found=True, g=0, q=0, graphs=0, connections=1)
+        stats.extra["sequential_steps"] = sequential
+        stats.extra["route"] = [0, 1]
+        stats.extra["attempts"] = 0
     else:
         timed: dict[tuple, tuple] = {}  # route -> (waypoints, sequential steps, makespan)
 
         def evaluate(roadmap, route):
             key = tuple(route)
             if key not in timed:
-                timed[key] = _timed(problem, params, retrieve(problem, roadmap, route))
+                timed[key] = _timed(problem, params, retrieve(problem, roadmap, route), memo)
             return timed[key]
 
         roadmap, source, goal, stats = build_roadmap(
@@ -73,14 +84,54 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 
 
-def _timed(problem: Problem, params: PlannerParams, waypoints):
+def _direct(problem: Problem, params: PlannerParams, memo: dict):
+    """Auto mode's first try, before any pebble graph is sampled.
+
+    The robots go from the start straight (or around the obstacles by
+    shortest paths) to their assigned targets, one at a time in dependency
+    order (:func:`planner.connect.sequenced_moves`), then scheduled
+    concurrently.  It is the roadmap's own first stage (the sequenced
+    connection between the start's and the target's graphs) run without
+    pumping the two graphs; when its plan is within the first
+    good-enough factor of the makespan lower bound, it is the answer;
+    otherwise ``memo`` keeps its timing for the roadmap's identical route.
+    Returns ``(waypoints, sequential steps)`` or ``None``.
+    """
+    if not params.auto or _GOOD_ENOUGH[1] is None:
+        return None
+    bends = (False, True) if problem.obstacles else (False,)
+    for bent in bends:
+        seq = sequenced_moves(problem, problem.start, problem.target, bent)
+        if seq is None:
+            continue
+        raw = [problem.start, *seq.waypoints(problem.start, seq.rows)]
+        waypoints, sequential, makespan = _timed(problem, params, raw, memo)
+        if makespan <= _GOOD_ENOUGH[1] * lower_bounds(problem)[0]:
+            return waypoints, sequential
+        return None
+    return None
+
+
+def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None = None):
     """Merge, cut, schedule and merge again: ``(waypoints, sequential steps, makespan)``.
+
+    ``memo`` maps waypoints already timed (by their bytes) to the result.
 
     Long moves are cut into speed-limited pieces before scheduling, which
     lets a robot waiting for another start while the other is still on its
     way; the chosen route's plan is then straightened by :func:`shortcut`.
     """
     waypoints = _drop_idle(waypoints)
+    key = waypoints.tobytes()
+    if memo is not None and key in memo:
+        return memo[key]
+    result = _timed_fresh(problem, params, waypoints)
+    if memo is not None:
+        memo[key] = result
+    return result
+
+
+def _timed_fresh(problem: Problem, params: PlannerParams, waypoints: np.ndarray):
     sequential = len(waypoints) - 1
     waypoints = merge_moves(problem, waypoints)
     if params.concurrent:
