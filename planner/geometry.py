@@ -317,7 +317,33 @@ class Environment:
         ok = np.minimum(self.wall_clearance(a), self.wall_clearance(b)) >= clearance
         near = ok & self._near_obstacles(np.minimum(a, b), np.maximum(a, b), clearance)
         if near.any():
-            ok[near] = self.segment_clearance(a[near], b[near]) >= clearance
+            ok[near] = self._segments_keep(a[near], b[near], clearance)
+        return ok
+
+    def _segments_keep(self, a: np.ndarray, b: np.ndarray, clearance: float) -> np.ndarray:
+        """``segment_clearance(a, b) >= clearance`` for segments inside the walls' margin.
+
+        The same closed forms as :meth:`segment_clearance_detail` without
+        tracking which obstacle is nearest: every circle's centre and every
+        polygon edge keep the distance, no edge is crossed, and (then the
+        segment lies wholly inside or wholly outside each polygon) its first
+        end is outside every polygon.
+        """
+        ok = np.ones(len(a), bool)
+        if len(self.circle_radii):
+            d = point_segment_distance(self.circle_centers[None], a[:, None], b[:, None])
+            ok &= (d - self.circle_radii[None] >= clearance).all(axis=1)
+        if self.polygons:
+            ea, eb, _ = self.edges
+            a1, b1 = a[:, None], b[:, None]
+            d = np.minimum(
+                np.minimum(point_segment_distance(a1, ea[None], eb[None]),
+                           point_segment_distance(b1, ea[None], eb[None])),
+                point_segment_distance(ea[None], a1, b1),
+            )
+            ok &= (d >= clearance).all(axis=1) & ~_crossing(a1, b1, ea[None], eb[None]).any(axis=1)
+            if ok.any():
+                ok[ok] = ~self._inside(a[ok]).any(axis=1)
         return ok
 
     def points_clear(self, points: np.ndarray, clearance: float) -> np.ndarray:
