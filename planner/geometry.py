@@ -333,7 +333,7 @@ class Environment:
         if len(self.circle_radii):
             d = point_segment_distance(self.circle_centers[None], a[:, None], b[:, None])
             ok &= (d - self.circle_radii[None] >= clearance).all(axis=1)
-        if self.polygons:
+        if self.polygons and clearance > 0:  # a polygon's set distance is never below 0
             ea, eb, _ = self.edges
             a1, b1 = a[:, None], b[:, None]
             d = np.minimum(
