@@ -335,12 +335,17 @@ class Environment:
             ok &= (d - self.circle_radii[None] >= clearance).all(axis=1)
         if self.polygons and clearance > 0:  # a polygon's set distance is never below 0
             ea, eb, _ = self.edges
+            n, e = len(a), len(ea)
             a1, b1 = a[:, None], b[:, None]
-            d = np.minimum(
-                np.minimum(point_segment_distance(a1, ea[None], eb[None]),
-                           point_segment_distance(b1, ea[None], eb[None])),
-                point_segment_distance(ea[None], a1, b1),
-            )
+            # One call for the three distances: each end to every edge, and
+            # every edge's first vertex to the segment.
+            pts = np.empty((n, 3 * e, 2))
+            sa = np.empty((n, 3 * e, 2))
+            sb = np.empty((n, 3 * e, 2))
+            pts[:, :e], pts[:, e : 2 * e], pts[:, 2 * e :] = a1, b1, ea
+            sa[:, :e], sa[:, e : 2 * e], sa[:, 2 * e :] = ea, ea, a1
+            sb[:, :e], sb[:, e : 2 * e], sb[:, 2 * e :] = eb, eb, b1
+            d = point_segment_distance(pts, sa, sb)  # (n, 3E)
             ok &= (d >= clearance).all(axis=1) & ~_crossing(a1, b1, ea[None], eb[None]).any(axis=1)
             if ok.any():
                 ok[ok] = ~self._inside(a[ok]).any(axis=1)

@@ -44,7 +44,10 @@ __all__ = ["merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", 
 def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
     """The moving robots of each step (index arrays)."""
     w = np.asarray(waypoints)
-    return [np.flatnonzero(np.any(w[k] != w[k + 1], axis=1)) for k in range(len(w) - 1)]
+    if len(w) < 2:
+        return []
+    step, robot = np.nonzero(np.any(w[1:] != w[:-1], axis=2))
+    return np.split(robot, np.searchsorted(step, np.arange(1, len(w) - 1)))
 
 
 def _segment_clear(problem: Problem, a, b, parked: np.ndarray) -> bool:
