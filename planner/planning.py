@@ -5,13 +5,14 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from .bounds import lower_bounds
+from .connect import sequenced_moves
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
-from .schedule import merge_moves, merge_steps, schedule, shortcut, split_moves
-from .connect import sequenced_moves
+from .schedule import merge_moves, merge_steps, schedule, shortcut, split_moves, step_clear
 from .upump import _GOOD_ENOUGH, NoPlanFound, build_roadmap, retrieve
 from .validate import PlanInvalid, check_plan
 
@@ -87,9 +88,10 @@ _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plu
 def _direct(problem: Problem, params: PlannerParams, memo: dict):
     """Auto mode's first try, before any pebble graph is sampled.
 
-    The robots go from the start straight (or around the obstacles by
-    shortest paths) to their assigned targets, one at a time in dependency
-    order (:func:`planner.connect.sequenced_moves`), then scheduled
+    First all robots at once, straight to their assigned targets, when
+    that single step is clear.  Then the robots go from the start straight
+    (or around the obstacles by shortest paths) to their assigned targets,
+    one at a time in dependency order (:func:`planner.connect.sequenced_moves`), then scheduled
     concurrently.  It is the roadmap's own first stage (the sequenced
     connection between the start's and the target's graphs) run without
     pumping the two graphs; when its plan is within the first
@@ -99,6 +101,13 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict):
     """
     if not params.auto or _GOOD_ENOUGH[1] is None:
         return None
+    limit = _GOOD_ENOUGH[1] * lower_bounds(problem)[0]
+    # Everybody at once, straight to the minimum-sum-of-squares targets: a
+    # connection in the paper's sense (m pairs, no two interfering), exact.
+    _, cols = linear_sum_assignment(((problem.start[:, None] - problem.target[None]) ** 2).sum(axis=2))
+    one = np.stack([problem.start, problem.target[cols]])
+    if step_clear(problem, one[0], one[1]) and _makespan(problem, one) <= limit:
+        return one, 1
     bends = (False, True) if problem.obstacles else (False,)
     for bent in bends:
         seq = sequenced_moves(problem, problem.start, problem.target, bent)
@@ -106,7 +115,7 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict):
             continue
         raw = [problem.start, *seq.waypoints(problem.start, seq.rows)]
         waypoints, sequential, makespan = _timed(problem, params, raw, memo)
-        if makespan <= _GOOD_ENOUGH[1] * lower_bounds(problem)[0]:
+        if makespan <= limit:
             return waypoints, sequential
         return None
     return None

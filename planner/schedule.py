@@ -38,7 +38,7 @@ import numpy as np
 from .geometry import closest_approach, point_segment_distance
 from .problem import Problem
 
-__all__ = ["merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", "steps_of"]
+__all__ = ["merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", "step_clear", "steps_of"]
 
 
 def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
@@ -255,7 +255,7 @@ def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.nda
     return w[keep]
 
 
-def _step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
+def step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
     """Exact check of one step in which every robot goes straight ``a -> b``."""
     moving = np.flatnonzero(np.any(a != b, axis=1))
     if len(moving) == 0:
@@ -277,7 +277,7 @@ def merge_steps(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
         return np.asarray(w)
     out = [w[0], w[1]]
     for nxt in w[2:]:
-        if _step_clear(problem, out[-2], nxt):
+        if step_clear(problem, out[-2], nxt):
             out[-1] = nxt  # the last step now runs straight to ``nxt``
         else:
             out.append(nxt)

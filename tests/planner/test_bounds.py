@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 import planner.planning as planning
 from planner import PlannerParams, check_plan, plan
 from planner.bounds import bottleneck_distance, lower_bounds, min_sum_distance
-from planner.problem import Polygon, Problem
+from planner.problem import Circle, Polygon, Problem
 
 coords = st.integers(0, 12).map(float)  # small integers: many equal distances (ties)
 point = st.tuples(coords, coords)
@@ -57,11 +57,33 @@ def test_direct_try_solves_an_open_swap_without_pebble_graphs():
     assert stats.makespan_s <= 1.5 * lower_bounds(problem)[0]
 
 
-def test_direct_try_gives_the_plan_the_roadmap_gives_for_the_same_route(monkeypatch):
+def test_direct_try_moves_everybody_at_once_when_that_step_is_clear():
     problem = _open_problem()
+    result, stats = plan(problem, PlannerParams(), np.random.default_rng(0))
+    assert (result.steps, stats.extra["sequential_steps"]) == (1, 1)
+    assert stats.makespan_s == pytest.approx(stats.makespan_lower_bound_s)
+
+
+def _blocked_problem():
+    """A circle in one robot's straight path: the single step is not clear."""
+    start = np.array([[6.0 + 4 * i, 5.0] for i in range(6)])
+    target = np.array([[6.0 + 4 * i, 30.0] for i in range(6)])
+    return Problem(40, 40, (Circle((16.0, 17.0), 3.0),), 1.0, 0.1, start, target)
+
+
+def test_direct_try_sequences_the_moves_when_the_single_step_is_blocked():
+    problem = _blocked_problem()
+    result, stats = plan(problem, PlannerParams(), np.random.default_rng(0))
+    assert (stats.graphs, stats.extra["route"]) == (0, [0, 1])
+    assert stats.extra["sequential_steps"] > 1
+    assert check_plan(problem, result).value >= problem.margin
+
+
+def test_direct_try_gives_the_plan_the_roadmap_gives_for_the_same_route(monkeypatch):
+    problem = _blocked_problem()
     direct, _ = plan(problem, PlannerParams(), np.random.default_rng(0))
     monkeypatch.setattr(planning, "_direct", lambda *args: None)
-    problem = _open_problem()
+    problem = _blocked_problem()
     via_roadmap, stats = plan(problem, PlannerParams(), np.random.default_rng(0))
     assert stats.extra["route"] == [0, 1] and stats.graphs >= 0
     assert np.array_equal(direct.waypoints, via_roadmap.waypoints)
