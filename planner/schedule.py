@@ -127,23 +127,26 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
         if lo < n_layers:
             L = n_layers - lo  # candidate layers lo .. n_layers - 1
             sel = mv_layer[:n_mv] >= lo
-            la = mv_a[:n_mv][sel]
-            lb = mv_b[:n_mv][sel]
             ll = mv_layer[:n_mv][sel] - lo
-            # join: simultaneous with the layer's moves
-            d = closest_approach(a[:, None], b[:, None], la[None], lb[None])  # (k, M)
-            join_bad = _any_by_layer((d < sep).any(axis=0), ll, L)
-            # pass: parked at b while the layer's moves run
-            d = point_segment_distance(b[:, None], la[None], lb[None])
-            pass_bad = _any_by_layer((d < sep).any(axis=0), ll, L)
+            n_k, n_lm = len(robots), mv_a[:n_mv][sel].shape[0]
+            # One closest-approach call for the four tests.  Rows: our moves
+            # (join) and our robots parked at b (pass); columns: the
+            # candidate layers' moves, then every robot parked at the start
+            # of each candidate layer (a parked robot is a zero-length move).
+            bef = before[lo:n_layers].reshape(-1, 2)  # (L * m, 2)
+            ours_a = np.concatenate([a, b])
+            ours_b = np.concatenate([b, b])
+            them_a = np.concatenate([mv_a[:n_mv][sel], bef])
+            them_b = np.concatenate([mv_b[:n_mv][sel], bef])
+            close = closest_approach(ours_a[:, None], ours_b[:, None], them_a[None], them_b[None]) < sep
             # robots parked during each candidate layer (not moving in it, not ours)
-            parked = ~moves_in[lo:n_layers].copy()  # (L, m)
+            parked = ~moves_in[lo:n_layers]  # (L, m)
             parked[:, robots] = False
-            bef = before[lo:n_layers]  # (L, m, 2)
-            d = point_segment_distance(bef[:, :, None, :], a[None, None], b[None, None])  # (L, m, k)
-            join_bad |= ((d < sep).any(axis=2) & parked).any(axis=1)
-            d = np.sqrt(((bef[:, :, None, :] - b[None, None]) ** 2).sum(axis=3))
-            pass_bad |= ((d < sep).any(axis=2) & parked).any(axis=1)
+            near = close[:, n_lm:].reshape(2 * n_k, L, m)
+            join_bad = _any_by_layer(close[:n_k, :n_lm].any(axis=0), ll, L)
+            join_bad |= (near[:n_k].any(axis=0) & parked).any(axis=1)
+            pass_bad = _any_by_layer(close[n_k:, :n_lm].any(axis=0), ll, L)
+            pass_bad |= (near[n_k:].any(axis=0) & parked).any(axis=1)
             # the latest layer j such that every later layer can be passed
             ok_after = np.ones(L, bool)  # all of layers j+1 .. end passable
             if L > 1:
