@@ -11,8 +11,10 @@ and target placements drawn independently, uniform, clear and separated
 with that generator.
 
 Every size runs in a fresh Python process (spawned, not forked), so that
-its peak memory is its own; one small untimed warm-up run (m = 3) takes
-lazy imports and first-call costs out of the measurements.  The memory
+its peak memory is its own; an untimed warm-up (the scipy modules the
+planner imports lazily, and two small runs with m = 3, in auto mode and at
+fixed g and q) takes lazy imports and first-call costs out of the
+measurements.  The memory
 column is the growth of the process's peak resident set size
 (``getrusage(RUSAGE_SELF).ru_maxrss``) from just before the first
 ``plan()`` call to after the last: about the largest extra memory a
@@ -80,13 +82,21 @@ def _run_size(m: int, seeds: int, time_limit: float) -> dict:
     problems = [scaled_problem(m, rng) for rng in rngs]
     bounds = [lower_bounds(p)[0] for p in problems]
     params = PlannerParams(time_limit=time_limit)
-    # One small warm-up run, so that lazy imports and first-call costs land
-    # before the baseline instead of in the first measured run.
+    # Warm-up, so that lazy imports and first-call costs land before the
+    # baseline instead of in the first measured run: the scipy modules the
+    # planner imports where it first needs them, then a small run in auto
+    # mode (often solved by the direct try alone) and one at fixed g and q
+    # (which always samples pebble graphs and connects them).
+    import scipy.optimize  # noqa: F401
+    import scipy.sparse.csgraph  # noqa: F401
+    import scipy.spatial  # noqa: F401
+
     warm = np.random.default_rng(10**6)
-    try:
-        plan(scaled_problem(3, warm), params, warm)
-    except NoPlanFound:
-        pass
+    for warm_params in (params, PlannerParams(g=1, q=16, time_limit=time_limit)):
+        try:
+            plan(scaled_problem(3, warm), warm_params, warm)
+        except NoPlanFound:
+            pass
     base = _maxrss_mib()
     records = []
     for s, (problem, rng, lb) in enumerate(zip(problems, rngs, bounds)):
