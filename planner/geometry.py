@@ -304,6 +304,13 @@ class Environment:
         gap_y = np.maximum(boxes[None, :, 1] - hi[:, None, 1], lo[:, None, 1] - boxes[None, :, 3])
         return ((gap_x < clearance) & (gap_y < clearance)).any(axis=1)
 
+    def _near_pairs(self, lo: np.ndarray, hi: np.ndarray, clearance: float) -> np.ndarray:
+        """``(N, P)``: which boxes ``[lo, hi]`` come within ``clearance`` of each polygon's box."""
+        boxes = self.obstacle_boxes[: len(self.polygons)]  # polygons come first
+        gap_x = np.maximum(boxes[None, :, 0] - hi[:, None, 0], lo[:, None, 0] - boxes[None, :, 2])
+        gap_y = np.maximum(boxes[None, :, 1] - hi[:, None, 1], lo[:, None, 1] - boxes[None, :, 3])
+        return (gap_x < clearance) & (gap_y < clearance)
+
     def segments_clear(self, a: np.ndarray, b: np.ndarray, clearance: float) -> np.ndarray:
         """Whether centres moving along ``a -> b`` keep ``clearance`` everywhere (exact).
 
@@ -334,21 +341,29 @@ class Environment:
             d = point_segment_distance(self.circle_centers[None], a[:, None], b[:, None])
             ok &= (d - self.circle_radii[None] >= clearance).all(axis=1)
         if self.polygons and clearance > 0:  # a polygon's set distance is never below 0
-            ea, eb, _ = self.edges
-            n, e = len(a), len(ea)
-            a1, b1 = a[:, None], b[:, None]
-            # One call for the three distances: each end to every edge, and
-            # every edge's first vertex to the segment.
-            pts = np.empty((n, 3 * e, 2))
-            sa = np.empty((n, 3 * e, 2))
-            sb = np.empty((n, 3 * e, 2))
-            pts[:, :e], pts[:, e : 2 * e], pts[:, 2 * e :] = a1, b1, ea
-            sa[:, :e], sa[:, e : 2 * e], sa[:, 2 * e :] = ea, ea, a1
-            sb[:, :e], sb[:, e : 2 * e], sb[:, 2 * e :] = eb, eb, b1
-            d = point_segment_distance(pts, sa, sb)  # (n, 3E)
-            ok &= (d >= clearance).all(axis=1) & ~_crossing(a1, b1, ea[None], eb[None]).any(axis=1)
-            if ok.any():
-                ok[ok] = ~self._inside(a[ok]).any(axis=1)
+            ea, eb, owner = self.edges
+            # Only (segment, polygon) pairs whose bounding boxes come within
+            # ``clearance`` can fail: a box gap bounds the distance from below,
+            # and a crossing or an end inside needs overlapping boxes.
+            near = self._near_pairs(np.minimum(a, b), np.maximum(a, b), clearance)  # (n, P)
+            ii, ee = np.nonzero(near[:, owner])
+            if len(ii):
+                pa, pb, qa, qb = a[ii], b[ii], ea[ee], eb[ee]
+                k = len(ii)
+                # One call for the three distances: each end to the edge, and
+                # the edge's first vertex to the segment.
+                d = point_segment_distance(
+                    np.concatenate([pa, pb, qa]), np.concatenate([qa, qa, pa]), np.concatenate([qb, qb, pb])
+                )
+                bad = (d[:k] < clearance) | (d[k : 2 * k] < clearance) | (d[2 * k :] < clearance)
+                bad |= _crossing(pa, pb, qa, qb)
+                ok[ii[bad]] = False
+            # A first end inside a polygon lies in the polygon's box.
+            boxes = self.obstacle_boxes[: len(self.polygons)]
+            in_box = ((a[:, None] >= boxes[None, :, :2]) & (a[:, None] <= boxes[None, :, 2:])).all(axis=2)
+            check = ok & in_box.any(axis=1)
+            if check.any():
+                ok[check] = ~self._inside(a[check]).any(axis=1)
         return ok
 
     def points_clear(self, points: np.ndarray, clearance: float) -> np.ndarray:

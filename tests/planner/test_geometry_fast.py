@@ -43,3 +43,17 @@ def test_edge_planner_shortcut_agrees_with_full_test():
     d[np.arange(len(iu)), ju] = np.inf
     full = (d.min(axis=1) >= p.separation) & (p.env.segment_clearance(v[iu], v[ju]) >= p.clearance)
     assert np.array_equal(fast, full)
+
+
+def test_segments_wholly_inside_or_grazing_a_polygon():
+    """Segments inside a polygon (no edge near) and segments passing its box's corner."""
+    env = _world().env
+    inside_a = np.array([[13.5, 15.0], [12.5, 11.0], [18.0, 11.5]])
+    inside_b = inside_a + [[0.0, 4.0], [1.0, 0.5], [0.5, 0.5]]
+    assert not env.segments_clear(inside_a, inside_b, 0.1).any()
+    assert np.array_equal(env.segments_clear(inside_a, inside_b, 0.0), env.segment_clearance(inside_a, inside_b) >= 0.0)
+    # past the box's corner (20, 13): clear iff the corner stays ``clearance`` away
+    a = np.array([[21.0, 12.0], [20.5, 14.5]])
+    b = np.array([[21.0, 14.0], [22.5, 14.5]])
+    for clearance in (0.4, 0.9, 1.0, 1.2):
+        assert np.array_equal(env.segments_clear(a, b, clearance), env.segment_clearance(a, b) >= clearance)
