@@ -211,7 +211,9 @@ def test_kill_midway_then_rerun_finishes(tmp_path, capsys):
 
 def test_ctrl_c_stops_at_once_and_keeps_every_row(tmp_path):
     path = tmp_path / "results.jsonl"
-    argv = [*SWARMFORM, "tune", str(FIG2), str(ROW06), "--g", "1", "2", "--q", "20", "40",
+    # q large enough that the 32 runs take seconds: Ctrl-C must land mid-sweep
+    # even on a loaded machine, where the poll below may see the rows late.
+    argv = [*SWARMFORM, "tune", str(FIG2), str(ROW06), "--g", "1", "2", "--q", "200", "400",
             "--seeds", "4", "--workers", "2", "--no-progress", "-o", str(path)]
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
@@ -231,7 +233,7 @@ def test_ctrl_c_stops_at_once_and_keeps_every_row(tmp_path):
     rows = read_results(path)
     assert 3 <= len(rows) < 32
     assert all(line.endswith(b"\n") and json.loads(line) for line in _lines(path))
-    result = sweep(grid([read_scenario(FIG2), read_scenario(ROW06)], g=[1, 2], q=[20, 40], seeds=range(4)),
+    result = sweep(grid([read_scenario(FIG2), read_scenario(ROW06)], g=[1, 2], q=[200, 400], seeds=range(4)),
                    path, workers=2)
     assert result.computed == 32 - len(rows)
     assert len(set(_keys(read_results(path)))) == 32
