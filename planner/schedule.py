@@ -94,21 +94,132 @@ def _any_by_layer(flags: np.ndarray, layer: np.ndarray, n_layers: int) -> np.nda
     return np.bincount(layer[flags], minlength=n_layers)[:n_layers] > 0
 
 
+_PAIRS_LIMIT = 40_000_000
+"""Largest table of pairwise tests :func:`schedule` computes up front; larger plans are
+scheduled layer by layer (:func:`_schedule_by_layer`, the same answers)."""
+_CHUNK = 250_000  # pairwise tests per closest-approach call
+
+
 def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     """Earliest-layer scheduling of the steps (see the module docstring).
 
-    Every step is checked against all the layers it could join at once:
-    its moves against each layer's moves (closest approach at a common
-    parameter) and against the robots parked during that layer, and its
-    robots' new positions against every later layer it would jump over.
+    Every step is checked against all the layers it could join: its moves
+    against each layer's moves (closest approach at a common parameter)
+    and against the robots parked during that layer, and its robots' new
+    positions against every later layer it would jump over.
+
+    Every one of these tests pairs a move of the plan with another move or
+    with a position some robot holds in the plan (its start or the end of
+    one of its moves), so all of them are computed at once, before the
+    layers are known; the layering then combines them as bit sets (Python
+    integers), which keeps the per-step cost to a few integer operations.
     """
     w = np.asarray(waypoints, float)
     if len(w) <= 2:
         return w
     m = w.shape[1]
-    sep = problem.separation
     steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
     total = sum(len(r) for _, r in steps)
+    if 2 * total * (2 * total + m) > _PAIRS_LIMIT:
+        return _schedule_by_layer(problem, w, steps, total)
+    sep = problem.separation
+    step_of = np.concatenate([np.full(len(r), k) for k, r in steps])
+    robot_of = np.concatenate([r for _, r in steps])
+    a, b = w[step_of, robot_of], w[step_of + 1, robot_of]  # move i: a[i] -> b[i]
+    held = np.concatenate([w[0], b])  # position ids: robot r's start is r, move i's end is m + i
+    # Rows: each move (join tests), then its robot parked at its end (pass
+    # tests); columns: every move, then every held position (a parked robot
+    # is a zero-length move).  Same closed form and arguments as layer by layer.
+    rows_a, rows_b = np.concatenate([a, b]), np.concatenate([b, b])
+    cols_a, cols_b = np.concatenate([a, held]), np.concatenate([b, held])
+    mv, pos = [], []  # per row: bits of the close moves, bits of the close positions
+    chunk = max(1, _CHUNK // len(cols_a))  # rows per call, to bound the temporaries
+    for r0 in range(0, len(rows_a), chunk):
+        ra, rb = rows_a[r0 : r0 + chunk, None], rows_b[r0 : r0 + chunk, None]
+        close = closest_approach(ra, rb, cols_a[None], cols_b[None]) < sep
+        mv += _bit_rows(close[:, :total])
+        pos += _bit_rows(close[:, total:])
+    join_mv, pass_mv = mv[:total], mv[total:]
+    join_pos, pass_pos = pos[:total], pos[total:]
+
+    cur = list(range(m))  # each robot's position id
+    all_held = (1 << m) - 1  # bits of every robot's position id
+    last = [-1] * m  # layer of each robot's latest move
+    layer_of = [0] * total
+    moves_in: list[int] = []  # per layer: bits of its moves
+    start_held: list[int] = []  # per layer: bits of every robot's position at its start
+    movers_held: list[int] = []  # per layer: bits of its moving robots' positions at its start
+    i = 0
+    for _, robots in steps:
+        rs = robots.tolist()
+        ids = range(i, i + len(rs))
+        i += len(rs)
+        lo = max(last[r] for r in rs) + 1  # each robot keeps the order of its own moves
+        ours = 0
+        for r in rs:
+            ours |= 1 << cur[r]
+        jm = jp = pm = pp = 0
+        for j in ids:
+            jm |= join_mv[j]
+            jp |= join_pos[j]
+            pm |= pass_mv[j]
+            pp |= pass_pos[j]
+        best = None
+        # From the last layer down: the earliest joinable layer such that
+        # every later layer can be passed; a layer that cannot be passed
+        # ends the search.
+        for layer in range(len(moves_in) - 1, lo - 1, -1):
+            parked = start_held[layer] & ~movers_held[layer] & ~ours
+            if not (jm & moves_in[layer]) and not (jp & parked):
+                best = layer
+            if (pm & moves_in[layer]) or (pp & parked):
+                break
+        new = 0
+        for j in ids:
+            new |= 1 << (m + j)
+        bits = 0
+        for j in ids:
+            bits |= 1 << j
+        if best is None:
+            best = len(moves_in)
+            moves_in.append(0)
+            start_held.append(all_held)
+            movers_held.append(0)
+        else:
+            for later in range(best + 1, len(moves_in)):
+                start_held[later] = (start_held[later] & ~ours) | new
+        moves_in[best] |= bits
+        movers_held[best] |= ours
+        all_held = (all_held & ~ours) | new
+        for r, j in zip(rs, ids):
+            cur[r] = m + j
+            last[r] = best
+            layer_of[j] = best
+    layer_of = np.asarray(layer_of)
+    out = [w[0].copy()]
+    for layer in range(len(moves_in)):
+        nxt = out[-1].copy()
+        sel = layer_of == layer
+        nxt[robot_of[sel]] = b[sel]
+        out.append(nxt)
+    return np.asarray(out)
+
+
+def _bit_rows(mask: np.ndarray) -> list[int]:
+    """Each row of a boolean matrix as a Python integer (bit ``j`` = column ``j``)."""
+    packed = np.packbits(mask, axis=1, bitorder="little")
+    return [int.from_bytes(row.tobytes(), "little") for row in packed]
+
+
+def _schedule_by_layer(problem: Problem, w: np.ndarray, steps, total: int) -> np.ndarray:
+    """:func:`schedule` for plans too long for its table of pairwise tests.
+
+    Every step is checked against all the layers it could join at once, in
+    one closest-approach call over the candidate layers' moves and parked
+    robots.
+    """
+    m = w.shape[1]
+    sep = problem.separation
     mv_layer = np.zeros(total, int)  # every scheduled move: its layer, robot and segment
     mv_robot = np.zeros(total, int)
     mv_a = np.zeros((total, 2))

@@ -105,3 +105,46 @@ def test_shortcut_removes_a_detour():
     out = shortcut(problem, w)
     assert _timed_plan(problem, out).makespan < _timed_plan(problem, w).makespan
     check_plan(problem, _timed_plan(problem, out))
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**31), st.integers(2, 12))
+def test_bitset_scheduler_matches_the_layer_by_layer_one(seed, m):
+    """The table of pairwise tests and the layer-by-layer checks give the same layers."""
+    import planner.schedule as sched
+
+    problem, rng = _random_problem(seed, m)
+    roadmap, source, goal, _ = build_roadmap(problem, PlannerParams(time_limit=20), rng, float("inf"))
+    for route in roadmap.routes(source, goal, 3):
+        w = split_moves(problem, _drop_idle(retrieve(problem, roadmap, route)))
+        steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
+        by_layer = sched._schedule_by_layer(problem, w, steps, sum(len(r) for _, r in steps))
+        assert np.array_equal(schedule(problem, w), by_layer)
+
+
+def test_scheduler_falls_back_to_layer_by_layer_for_long_plans(monkeypatch):
+    import planner.schedule as sched
+
+    problem, w = _swap_problem()
+    expected = schedule(problem, w)
+    calls = []
+    original = sched._schedule_by_layer
+    monkeypatch.setattr(sched, "_PAIRS_LIMIT", 0)
+    monkeypatch.setattr(sched, "_schedule_by_layer", lambda *a: calls.append(1) or original(*a))
+    assert np.array_equal(sched.schedule(problem, w), expected) and calls
+
+
+def test_a_move_never_joins_a_layer_through_a_robot_parked_there():
+    """Robot 1 stays parked at X during layer 0 (its move would cross robot 2's);
+    robot 0 passes X after robot 1 left, so it must not join layer 0."""
+    w0 = np.array([[2.0, 10.0], [10.0, 10.0], [20.0, 20.0]])
+    w1 = w0.copy()
+    w1[2] = [2.0, 20.0]  # robot 2 crosses robot 1's path
+    w2 = w1.copy()
+    w2[1] = [10.0, 30.0]  # robot 1 leaves X
+    w3 = w2.copy()
+    w3[0] = [18.0, 10.0]  # robot 0 passes X
+    problem = Problem(40, 40, (), 1.0, 0.1, w0, w3)
+    out = schedule(problem, np.array([w0, w1, w2, w3]))
+    assert np.array_equal(out, np.array([w0, w1, w3]))  # layers: {2}, {1, 0}
+    check_plan(problem, _timed_plan(problem, out))
