@@ -120,6 +120,8 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     m = w.shape[1]
     steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
     total = sum(len(r) for _, r in steps)
+    if total == 0:  # nobody moves
+        return w[:1].copy()
     if 2 * total * (2 * total + m) > _PAIRS_LIMIT:
         return _schedule_by_layer(problem, w, steps, total)
     sep = problem.separation
