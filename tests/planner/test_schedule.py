@@ -29,16 +29,29 @@ def _timed_plan(problem, waypoints) -> Plan:
     return Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed, problem.max_accel)
 
 
+def _route_plans(seed: int, m: int):
+    """A random problem and the sequential waypoints of its roadmap's best routes."""
+    problem, rng = _random_problem(seed, m)
+    roadmap, source, goal, _ = build_roadmap(problem, PlannerParams(time_limit=20), rng, float("inf"))
+    return problem, [retrieve(problem, roadmap, route) for route in roadmap.routes(source, goal, 3)]
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 2**31), st.integers(2, 12))
 def test_concurrent_plan_is_valid_and_never_longer(seed, m):
-    """Every candidate route: the concurrent plan passes the validator and is no longer."""
-    problem, rng = _random_problem(seed, m)
-    roadmap, source, goal, _ = build_roadmap(problem, PlannerParams(time_limit=20), rng, float("inf"))
-    for route in roadmap.routes(source, goal, 3):
-        sequential = _timed_plan(problem, _drop_idle(retrieve(problem, roadmap, route)))
+    """Every candidate route: the concurrent plan passes the validator and is no longer;
+    the scheduler's table of pairwise tests gives the same layers as layer-by-layer checks."""
+    import planner.schedule as sched
+
+    problem, routes = _route_plans(seed, m)
+    for raw in routes:
+        w = split_moves(problem, _drop_idle(raw))
+        steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
+        by_layer = sched._schedule_by_layer(problem, w, steps, sum(len(r) for _, r in steps))
+        assert np.array_equal(schedule(problem, w), by_layer)
+        sequential = _timed_plan(problem, _drop_idle(raw))
         check_plan(problem, sequential)
-        waypoints, _, makespan = _timed(problem, PlannerParams(), retrieve(problem, roadmap, route))
+        waypoints, _, makespan = _timed(problem, PlannerParams(), raw)
         waypoints = shortcut(problem, waypoints)
         concurrent = _timed_plan(problem, waypoints)
         check_plan(problem, concurrent)
@@ -105,21 +118,6 @@ def test_shortcut_removes_a_detour():
     out = shortcut(problem, w)
     assert _timed_plan(problem, out).makespan < _timed_plan(problem, w).makespan
     check_plan(problem, _timed_plan(problem, out))
-
-
-@settings(max_examples=20, deadline=None)
-@given(st.integers(0, 2**31), st.integers(2, 12))
-def test_bitset_scheduler_matches_the_layer_by_layer_one(seed, m):
-    """The table of pairwise tests and the layer-by-layer checks give the same layers."""
-    import planner.schedule as sched
-
-    problem, rng = _random_problem(seed, m)
-    roadmap, source, goal, _ = build_roadmap(problem, PlannerParams(time_limit=20), rng, float("inf"))
-    for route in roadmap.routes(source, goal, 3):
-        w = split_moves(problem, _drop_idle(retrieve(problem, roadmap, route)))
-        steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
-        by_layer = sched._schedule_by_layer(problem, w, steps, sum(len(r) for _, r in steps))
-        assert np.array_equal(schedule(problem, w), by_layer)
 
 
 def test_scheduler_falls_back_to_layer_by_layer_for_long_plans(monkeypatch):
