@@ -170,6 +170,14 @@ def _fold_min(best, who, d, ids):
     return np.where(better, dj, best), np.where(better, np.asarray(ids)[j], who)
 
 
+def _boxes_near(lo: np.ndarray, hi: np.ndarray, boxes: np.ndarray, clearance: float) -> np.ndarray:
+    """``(N, B)``: which boxes ``[lo, hi]`` come within ``clearance`` of each of ``boxes``
+    (rows ``xmin, ymin, xmax, ymax``); the gap along one axis bounds the distance from below."""
+    gap_x = np.maximum(boxes[None, :, 0] - hi[:, None, 0], lo[:, None, 0] - boxes[None, :, 2])
+    gap_y = np.maximum(boxes[None, :, 1] - hi[:, None, 1], lo[:, None, 1] - boxes[None, :, 3])
+    return (gap_x < clearance) & (gap_y < clearance)
+
+
 @dataclass(frozen=True, eq=False)
 class Environment:
     """The static world in array form: walls, polygon edges and circles.
@@ -297,19 +305,7 @@ class Environment:
 
     def _near_obstacles(self, lo: np.ndarray, hi: np.ndarray, clearance: float) -> np.ndarray:
         """Which boxes ``[lo, hi]`` come within ``clearance`` of some obstacle's box."""
-        boxes = self.obstacle_boxes
-        if len(boxes) == 0:
-            return np.zeros(len(lo), bool)
-        gap_x = np.maximum(boxes[None, :, 0] - hi[:, None, 0], lo[:, None, 0] - boxes[None, :, 2])
-        gap_y = np.maximum(boxes[None, :, 1] - hi[:, None, 1], lo[:, None, 1] - boxes[None, :, 3])
-        return ((gap_x < clearance) & (gap_y < clearance)).any(axis=1)
-
-    def _near_pairs(self, lo: np.ndarray, hi: np.ndarray, clearance: float) -> np.ndarray:
-        """``(N, P)``: which boxes ``[lo, hi]`` come within ``clearance`` of each polygon's box."""
-        boxes = self.obstacle_boxes[: len(self.polygons)]  # polygons come first
-        gap_x = np.maximum(boxes[None, :, 0] - hi[:, None, 0], lo[:, None, 0] - boxes[None, :, 2])
-        gap_y = np.maximum(boxes[None, :, 1] - hi[:, None, 1], lo[:, None, 1] - boxes[None, :, 3])
-        return (gap_x < clearance) & (gap_y < clearance)
+        return _boxes_near(lo, hi, self.obstacle_boxes, clearance).any(axis=1)
 
     def segments_clear(self, a: np.ndarray, b: np.ndarray, clearance: float) -> np.ndarray:
         """Whether centres moving along ``a -> b`` keep ``clearance`` everywhere (exact).
@@ -345,7 +341,8 @@ class Environment:
             # Only (segment, polygon) pairs whose bounding boxes come within
             # ``clearance`` can fail: a box gap bounds the distance from below,
             # and a crossing or an end inside needs overlapping boxes.
-            near = self._near_pairs(np.minimum(a, b), np.maximum(a, b), clearance)  # (n, P)
+            boxes = self.obstacle_boxes[: len(self.polygons)]  # polygons come first
+            near = _boxes_near(np.minimum(a, b), np.maximum(a, b), boxes, clearance)  # (n, P)
             ii, ee = np.nonzero(near[:, owner])
             if len(ii):
                 pa, pb, qa, qb = a[ii], b[ii], ea[ee], eb[ee]
@@ -359,7 +356,6 @@ class Environment:
                 bad |= _crossing(pa, pb, qa, qb)
                 ok[ii[bad]] = False
             # A first end inside a polygon lies in the polygon's box.
-            boxes = self.obstacle_boxes[: len(self.polygons)]
             in_box = ((a[:, None] >= boxes[None, :, :2]) & (a[:, None] <= boxes[None, :, 2:])).all(axis=2)
             check = ok & in_box.any(axis=1)
             if check.any():

@@ -123,7 +123,7 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     if total == 0:  # nobody moves
         return w[:1].copy()
     if 2 * total * (2 * total + m) > _PAIRS_LIMIT:
-        return _schedule_by_layer(problem, w, steps, total)
+        return _schedule_by_layer(problem, w, steps)
     sep = problem.separation
     step_of = np.concatenate([np.full(len(r), k) for k, r in steps])
     robot_of = np.concatenate([r for _, r in steps])
@@ -154,7 +154,9 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     i = 0
     for _, robots in steps:
         rs = robots.tolist()
-        ids = range(i, i + len(rs))
+        ids = range(i, i + len(rs))  # this step's moves: consecutive ids
+        bits = ((1 << len(rs)) - 1) << i
+        new = bits << m  # the position ids of their ends
         i += len(rs)
         lo = max(last[r] for r in rs) + 1  # each robot keeps the order of its own moves
         ours = 0
@@ -176,12 +178,6 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
                 best = layer
             if (pm & moves_in[layer]) or (pp & parked):
                 break
-        new = 0
-        for j in ids:
-            new |= 1 << (m + j)
-        bits = 0
-        for j in ids:
-            bits |= 1 << j
         if best is None:
             best = len(moves_in)
             moves_in.append(0)
@@ -213,14 +209,16 @@ def _bit_rows(mask: np.ndarray) -> list[int]:
     return [int.from_bytes(row.tobytes(), "little") for row in packed]
 
 
-def _schedule_by_layer(problem: Problem, w: np.ndarray, steps, total: int) -> np.ndarray:
+def _schedule_by_layer(problem: Problem, w: np.ndarray, steps) -> np.ndarray:
     """:func:`schedule` for plans too long for its table of pairwise tests.
 
+    ``steps`` are the plan's non-empty steps as ``(index, moving robots)``.
     Every step is checked against all the layers it could join at once, in
     one closest-approach call over the candidate layers' moves and parked
     robots.
     """
     m = w.shape[1]
+    total = sum(len(r) for _, r in steps)
     sep = problem.separation
     mv_layer = np.zeros(total, int)  # every scheduled move: its layer, robot and segment
     mv_robot = np.zeros(total, int)

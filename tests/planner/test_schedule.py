@@ -47,8 +47,7 @@ def test_concurrent_plan_is_valid_and_never_longer(seed, m):
     for raw in routes:
         w = split_moves(problem, _drop_idle(raw))
         steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
-        by_layer = sched._schedule_by_layer(problem, w, steps, sum(len(r) for _, r in steps))
-        assert np.array_equal(schedule(problem, w), by_layer)
+        assert np.array_equal(schedule(problem, w), sched._schedule_by_layer(problem, w, steps))
         sequential = _timed_plan(problem, _drop_idle(raw))
         check_plan(problem, sequential)
         waypoints, _, makespan = _timed(problem, PlannerParams(), raw)
