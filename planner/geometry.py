@@ -162,6 +162,34 @@ def points_in_polygon(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return (np.count_nonzero(cross, axis=1) % 2) == 1
 
 
+def _segment_edge_close(ax, ay, bx, by, cx, cy, dx, dy, clearance: float) -> np.ndarray:
+    """Segments ``[a, b]`` and ``[c, d]`` (1-D coordinate arrays) come closer than ``clearance``.
+
+    :func:`segment_segment_distance`'s test without its fourth distance
+    (``d`` to ``[a, b]``: the caller tests every edge of a closed polygon,
+    and ``d`` starts the next one), written on coordinate arrays; each
+    distance is computed exactly as :func:`point_segment_distance` does, so
+    the answers agree with :meth:`Environment.segment_clearance` to the bit.
+    """
+    abx, aby = bx - ax, by - ay
+    cdx, cdy = dx - cx, dy - cy
+    acx, acy = ax - cx, ay - cy
+    bcx, bcy = bx - cx, by - cy
+    cd2 = np.maximum(cdx * cdx + cdy * cdy, 1e-300)
+    ab2 = np.maximum(abx * abx + aby * aby, 1e-300)
+    bad = np.zeros(len(ax), bool)
+    for px, py, ux, uy, u2 in ((acx, acy, cdx, cdy, cd2), (bcx, bcy, cdx, cdy, cd2), (-acx, -acy, abx, aby, ab2)):
+        t = np.minimum(np.maximum((px * ux + py * uy) / u2, 0.0), 1.0)
+        ex, ey = px - t * ux, py - t * uy
+        bad |= np.sqrt(ex * ex + ey * ey) < clearance
+    # a strict crossing (the orientations of _crossing)
+    o1 = abx * (cy - ay) - aby * (cx - ax)
+    o2 = abx * (dy - ay) - aby * (dx - ax)
+    o3 = cdx * (ay - cy) - cdy * (ax - cx)
+    o4 = cdx * (by - cy) - cdy * (bx - cx)
+    return bad | ((o1 * o2 < 0.0) & (o3 * o4 < 0.0))
+
+
 def _fold_min(best, who, d, ids):
     """Fold distances ``(n, K)`` to K obstacles into the running minimum and its owner."""
     j = np.argmin(d, axis=1)
@@ -239,6 +267,16 @@ class Environment:
             object.__setattr__(self, "_edges", cached)
             starts = np.concatenate([[0], np.cumsum([len(p) for p in self.polygons])[:-1]]).astype(int)
             object.__setattr__(self, "_starts", starts)
+        return cached
+
+    @property
+    def edge_boxes(self) -> np.ndarray:
+        """``(E, 4)`` bounding boxes ``xmin, ymin, xmax, ymax`` of the polygon edges; cached."""
+        cached = self.__dict__.get("_edge_boxes")
+        if cached is None:
+            a, b, _ = self.edges
+            cached = np.concatenate([np.minimum(a, b), np.maximum(a, b)], axis=1)
+            object.__setattr__(self, "_edge_boxes", cached)
         return cached
 
     @property
@@ -337,24 +375,16 @@ class Environment:
             d = point_segment_distance(self.circle_centers[None], a[:, None], b[:, None])
             ok &= (d - self.circle_radii[None] >= clearance).all(axis=1)
         if self.polygons and clearance > 0:  # a polygon's set distance is never below 0
-            ea, eb, owner = self.edges
-            # Only (segment, polygon) pairs whose bounding boxes come within
+            ea, eb, _ = self.edges
+            # Only (segment, edge) pairs whose bounding boxes come within
             # ``clearance`` can fail: a box gap bounds the distance from below,
-            # and a crossing or an end inside needs overlapping boxes.
-            boxes = self.obstacle_boxes[: len(self.polygons)]  # polygons come first
-            near = _boxes_near(np.minimum(a, b), np.maximum(a, b), boxes, clearance)  # (n, P)
-            ii, ee = np.nonzero(near[:, owner])
+            # and a crossing needs overlapping boxes.
+            ii, ee = np.nonzero(_boxes_near(np.minimum(a, b), np.maximum(a, b), self.edge_boxes, clearance))
             if len(ii):
-                pa, pb, qa, qb = a[ii], b[ii], ea[ee], eb[ee]
-                k = len(ii)
-                # One call for the three distances: each end to the edge, and
-                # the edge's first vertex to the segment.
-                d = point_segment_distance(
-                    np.concatenate([pa, pb, qa]), np.concatenate([qa, qa, pa]), np.concatenate([qb, qb, pb])
-                )
-                bad = (d[:k] < clearance) | (d[k : 2 * k] < clearance) | (d[2 * k :] < clearance)
-                bad |= _crossing(pa, pb, qa, qb)
+                bad = _segment_edge_close(a[ii, 0], a[ii, 1], b[ii, 0], b[ii, 1],
+                                          ea[ee, 0], ea[ee, 1], eb[ee, 0], eb[ee, 1], clearance)
                 ok[ii[bad]] = False
+            boxes = self.obstacle_boxes[: len(self.polygons)]  # polygons come first
             # A first end inside a polygon lies in the polygon's box.
             in_box = ((a[:, None] >= boxes[None, :, :2]) & (a[:, None] <= boxes[None, :, 2:])).all(axis=2)
             check = ok & in_box.any(axis=1)

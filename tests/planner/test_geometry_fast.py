@@ -57,3 +57,16 @@ def test_segments_wholly_inside_or_grazing_a_polygon():
     b = np.array([[21.0, 14.0], [22.5, 14.5]])
     for clearance in (0.4, 0.9, 1.0, 1.2):
         assert np.array_equal(env.segments_clear(a, b, clearance), env.segment_clearance(a, b) >= clearance)
+
+
+def test_segments_at_exactly_the_clearance_agree_with_the_exact_kernel():
+    """Parallel to an edge, or ending, exactly ``clearance`` away: the fast test is the
+    exact one to the bit (a segment exactly at the clearance is clear)."""
+    env = _world().env
+    a = np.array([[12.0, 9.0], [11.0, 12.0], [16.0, 14.0], [14.0, 20.5], [13.0, 8.0]])
+    b = np.array([[20.0, 9.0], [11.0, 18.0], [16.0, 24.0], [17.0, 20.5], [13.0, 22.0]])
+    for clearance in (0.5, 1.0, 1.5):
+        fast = env.segments_clear(a, b, clearance)
+        assert np.array_equal(fast, env.segment_clearance(a, b) >= clearance)
+    assert env.segments_clear(a[:3], b[:3], 1.0).all()  # each exactly 1.0 away
+    assert not env.segments_clear(a[3:], b[3:], 1.0).any()  # 0.5 above the top; across the polygon
