@@ -78,6 +78,15 @@ def _visible(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return ok.reshape(len(a), len(b))
 
 
+def _visible_among(problem: Problem, pts: np.ndarray) -> np.ndarray:
+    """``_visible(problem, pts, pts)``, testing each unordered pair once (the test is symmetric)."""
+    i, j = np.triu_indices(len(pts), k=1)
+    vis = np.zeros((len(pts), len(pts)), bool)
+    vis[i, j] = problem.env.segments_clear(pts[i], pts[j], problem.clearance)
+    vis |= vis.T
+    return vis
+
+
 def _corner_graph(problem: Problem):
     """Corner points with all-pairs shortest distances and predecessors (cached)."""
     cached = problem.__dict__.get("_corner_graph")
@@ -89,7 +98,7 @@ def _corner_graph(problem: Problem):
     else:
         from scipy.sparse.csgraph import shortest_path
 
-        vis_cc = _visible(problem, corners, corners)
+        vis_cc = _visible_among(problem, corners)
         dcc = np.where(vis_cc, np.linalg.norm(corners[:, None] - corners[None], axis=2), 0.0)
         dist_cc, pred_cc = shortest_path(dcc, directed=False, return_predecessors=True)
         cached = (corners, np.where(np.isfinite(dist_cc), dist_cc, np.inf), pred_cc)
