@@ -287,7 +287,9 @@ class Sequenced:
     Robot on ``va[rows[k]]`` goes to ``vb[cols[k]]`` along ``paths[k]`` (a
     polyline from source to destination); ``order`` lists ``k`` in the
     order the moves run; ``duration`` is the longest chain of dependent
-    moves (what the moves take when independent ones overlap).
+    moves (what the moves take when independent ones overlap).  With
+    ``groups`` (consecutive runs of ``order``), the robots of a group move
+    together, leg by leg.
     """
 
     rows: np.ndarray
@@ -295,20 +297,26 @@ class Sequenced:
     paths: tuple
     order: np.ndarray
     duration: float
+    groups: tuple | None = None
 
     def waypoints(self, positions: np.ndarray, robots) -> list[np.ndarray]:
         """The steps, leg by leg, that move ``robots[k]`` (rows of ``positions``) in order."""
         pos = np.array(positions, float)
+        robots = np.asarray(robots)
         out = []
-        for k in self.order:
-            for point in self.paths[k][1:]:
+        groups = self.groups if self.groups is not None else [[k] for k in self.order]
+        for group in groups:
+            legs = max(len(self.paths[k]) for k in group) - 1
+            for s in range(1, legs + 1):
                 pos = pos.copy()
-                pos[robots[k]] = point
+                for k in group:
+                    pos[robots[k]] = self.paths[k][min(s, len(self.paths[k]) - 1)]
                 out.append(pos)
         return out
 
 
-def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool = False) -> Sequenced | None:
+def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool = False,
+                    groups: bool = False) -> Sequenced | None:
     """Move the robots on ``va`` to ``vb`` one at a time, ordered by their conflicts.
 
     Robots go along a minimum-sum-of-squares assignment: of the straight
@@ -324,6 +332,16 @@ def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool
     source or its destination, and both are clear of ``i``'s path.
     Returns ``None`` when some robot has no path or the dependencies have a
     cycle.
+
+    With ``groups``, a cycle does not end it: the robots of each strongly
+    connected component of the dependencies move together (leg by leg,
+    one shared time parameter per leg), components in a topological
+    order.  Robots outside a component stay clear of its paths by the
+    same argument (a robot parked on its source is in a later component,
+    one on its destination in an earlier one, and the dependencies keep
+    the paths clear of both); inside a component every pair of
+    simultaneous legs is checked exactly (closest approach).  ``None``
+    when such a check fails.
     """
     from scipy.optimize import linear_sum_assignment
 
@@ -371,9 +389,11 @@ def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool
     first = (path_to_src < sep).T | (path_to_dst < sep)
     first &= moving[None, :] | moving[:, None]
     order = _topological(first)
-    if order is None:
-        return None
     dur = step_duration(np.linalg.norm(pb - pa, axis=2), problem.max_speed, problem.max_accel).sum(axis=1)
+    if order is None:
+        if not groups:
+            return None
+        return _grouped(rows, cols, paths, pa, pb, first, dur, sep)
     finish = np.zeros(m)
     for i in order:  # longest chain of dependent moves
         preds = np.flatnonzero(first[:, i])
@@ -403,6 +423,33 @@ def connect_sequenced(
         ga.signature(src_sorted), gb.signature(dst_sorted), seq.order,
         tuple(p[1:-1] for p in seq.paths) if has_via else None,
     )
+
+
+def _grouped(rows, cols, paths, pa, pb, first, dur, sep) -> Sequenced | None:
+    """:class:`Sequenced` moving each strongly connected component of ``first`` together."""
+    from scipy.sparse.csgraph import connected_components
+
+    n_comp, comp = connected_components(first, directed=True, connection="strong")
+    cfirst = np.zeros((n_comp, n_comp), bool)  # component j before component i
+    j, i = np.nonzero(first)
+    cfirst[comp[j], comp[i]] = True
+    np.fill_diagonal(cfirst, False)
+    corder = _topological(cfirst)  # a condensation has no cycle
+    members = [np.flatnonzero(comp == c) for c in range(n_comp)]
+    for c in corder:
+        g = members[c]
+        if len(g) > 1:  # simultaneous legs: one shared parameter per leg
+            d = closest_approach(pa[g][:, None], pb[g][:, None], pa[g][None], pb[g][None])  # (g, g, legs)
+            d[np.arange(len(g)), np.arange(len(g))] = np.inf
+            if d.min() < sep:
+                return None
+    groups = tuple(members[c].tolist() for c in corder)
+    finish = np.zeros(n_comp)
+    for c in corder:  # longest chain of dependent groups
+        preds = np.flatnonzero(cfirst[:, c])
+        finish[c] = (finish[preds].max() if len(preds) else 0.0) + dur[members[c]].max()
+    order = np.concatenate([members[c] for c in corder])
+    return Sequenced(rows, cols, tuple(paths), order, float(finish.max(initial=0.0)), groups)
 
 
 def _topological(first: np.ndarray) -> list[int] | None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -13,7 +14,8 @@ from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
 from .schedule import merge_moves, merge_steps, schedule, shortcut, split_moves, step_clear
-from .upump import _GOOD_ENOUGH, NoPlanFound, build_roadmap, retrieve
+from .passages import passage_points
+from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
 from .validate import PlanInvalid, check_plan
 
 __all__ = ["NoPlanFound", "plan"]
@@ -32,19 +34,22 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     problem.validate()
     t0 = time.perf_counter()
     deadline = t0 + params.time_limit
-    if _same_set(problem.start, problem.target):
+    memo: dict = {}
+    same = _same_set(problem.start, problem.target)
+    direct = None if same else _direct(problem, params, memo)
+    if same:
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
                                      problem.max_speed, problem.max_accel)
-    elif (direct := _direct(problem, params, memo := {})) is not None:
-        waypoints, sequential = direct
+    elif direct is not None and direct.final(problem):
+        waypoints, sequential, _, label = direct.best
         if params.concurrent:
             waypoints = shortcut(problem, waypoints)
         result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                      problem.max_accel)
-        stats = PlanStats(found=True, g=0, q=0, graphs=0, connections=1)
+        stats = PlanStats(found=True, g=0, q=0, graphs=0, connections=direct.legs[label])
         stats.extra["sequential_steps"] = sequential
-        stats.extra["route"] = [0, 1]
+        _name_direct(stats, label)
         stats.extra["attempts"] = 0
     else:
         timed: dict[tuple, tuple] = {}  # route -> (waypoints, sequential steps, makespan)
@@ -55,10 +60,15 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
                 timed[key] = _timed(problem, params, retrieve(problem, roadmap, route), memo)
             return timed[key]
 
+        incumbent = None if direct is None or direct.best is None else direct.best[2]
         roadmap, source, goal, stats = build_roadmap(
-            problem, params, rng, deadline, makespan=lambda rm, route: evaluate(rm, route)[2]
+            problem, params, rng, deadline, makespan=lambda rm, route: evaluate(rm, route)[2],
+            incumbent=incumbent, covered=set() if direct is None else direct.covered,
         )
         best = None
+        if direct is not None and direct.best is not None:
+            waypoints, sequential, makespan, label = direct.best
+            best = (waypoints, sequential, makespan, label)
         for route in roadmap.routes(source, goal, _ROUTES):
             waypoints, sequential, makespan = evaluate(roadmap, route)
             if best is None or makespan < best[2]:
@@ -69,7 +79,10 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                      problem.max_accel)
         stats.extra["sequential_steps"] = sequential
-        stats.extra["route"] = [int(g) for g, _ in route]
+        if isinstance(route, str):  # a direct try beat every roadmap route
+            _name_direct(stats, route)
+        else:
+            stats.extra["route"] = [int(g) for g, _ in route]
     try:
         clearance = check_plan(problem, result)
     except PlanInvalid as exc:  # a bug, never an expected outcome
@@ -82,43 +95,137 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     return result, stats
 
 
+def _name_direct(stats: PlanStats, label: str) -> None:
+    """Record which direct try made the plan; the start-target connections are route ``[0, 1]``."""
+    stats.extra["direct"] = label
+    if label in ("one step", "sequenced"):
+        stats.extra["route"] = [0, 1]
+
+
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 
 
-def _direct(problem: Problem, params: PlannerParams, memo: dict):
-    """Auto mode's first try, before any pebble graph is sampled.
+@dataclass
+class _Direct:
+    """What auto mode's direct tries found.
 
-    First all robots at once, straight to their assigned targets, when
-    that single step is clear.  Then the robots go from the start straight
-    (or around the obstacles by shortest paths) to their assigned targets,
-    one at a time in dependency order (:func:`planner.connect.sequenced_moves`), then scheduled
-    concurrently.  It is the roadmap's own first stage (the sequenced
-    connection between the start's and the target's graphs) run without
-    pumping the two graphs; when its plan is within the first
-    good-enough factor of the makespan lower bound, it is the answer;
-    otherwise ``memo`` keeps its timing for the roadmap's identical route.
-    Returns ``(waypoints, sequential steps)`` or ``None``.
+    ``best`` is ``(waypoints, sequential steps, makespan, label)`` of the
+    shortest plan found (or ``None``); ``accepted`` when it is good enough
+    to end the search; ``covered`` names the roadmap's structured stages
+    whose whole route was tried here (the roadmap skips them); ``legs``
+    the connections (straight or sequenced legs) of each try.
+    """
+
+    best: tuple | None = None
+    accepted: bool = False
+    covered: set = field(default_factory=set)
+    legs: dict = field(default_factory=dict)
+
+    def offer(self, label: str, legs: int, timed: tuple) -> None:
+        self.legs[label] = legs
+        if self.best is None or timed[2] < self.best[2]:
+            self.best = (*timed, label)
+
+    def final(self, problem: Problem) -> bool:
+        """Whether the roadmap has nothing left to add.
+
+        With a plan in hand, the roadmap's own versions of the stages whose
+        chains failed here rarely beat it (on the paper's scenarios the
+        median makespans are the same with and without them), and its last
+        stage, one graph holding both placements, only pays where robots
+        must file through a narrow passage and the plan is far from the
+        bound (``_GOOD_ENOUGH[-1]``).
+        """
+        if self.accepted:
+            return True
+        if self.best is None:
+            return False
+        return not len(passage_points(problem)) or self.best[2] <= _GOOD_ENOUGH[-1] * lower_bounds(problem)[0]
+
+
+def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | None:
+    """Auto mode's tries, before any pebble graph is sampled (``None`` with fixed g and q).
+
+    1. All robots at once, straight to their assigned targets, when that
+       single step is clear: a connection in the paper's sense (m pairs,
+       no two interfering), exact.
+    2. The roadmap's structured stages (:data:`planner.upump.STAGES`) run
+       on whole placements, without pumping pebble graphs: the robots go
+       from each placement of a stage's chain to the next (see
+       :func:`_chain_waypoints`), then the moves are scheduled
+       concurrently.  Where every leg is a sequenced connection, this is
+       the route the roadmap would find through that stage (same plan).
+
+    Like the roadmap, it stops at the first stage before which the best
+    plan is within the stage's good-enough factor of the makespan lower
+    bound (``accepted``).  A stage whose chain has a thinned placement or
+    a leg it cannot move is left to the roadmap (``covered`` lacks it),
+    which has free vertices to work with; ``memo`` keeps every timing, so
+    the roadmap does not redo an identical route.
     """
     if not params.auto or _GOOD_ENOUGH[1] is None:
         return None
-    limit = _GOOD_ENOUGH[1] * lower_bounds(problem)[0]
-    # Everybody at once, straight to the minimum-sum-of-squares targets: a
-    # connection in the paper's sense (m pairs, no two interfering), exact.
+    out = _Direct()
+    bound = lower_bounds(problem)[0]
     _, cols = linear_sum_assignment(((problem.start[:, None] - problem.target[None]) ** 2).sum(axis=2))
     one = np.stack([problem.start, problem.target[cols]])
-    if step_clear(problem, one[0], one[1]) and _makespan(problem, one) <= limit:
-        return one, 1
-    bends = (False, True) if problem.obstacles else (False,)
-    for bent in bends:
-        seq = sequenced_moves(problem, problem.start, problem.target, bent)
-        if seq is None:
+    if step_clear(problem, one[0], one[1]):
+        out.offer("one step", 1, (one, 1, _makespan(problem, one)))
+        if out.best[2] <= _GOOD_ENOUGH[1] * bound:
+            out.accepted = True
+            return out
+    for factor, stage in zip(_GOOD_ENOUGH, STAGES):
+        if factor is not None and out.best is not None and out.best[2] <= factor * bound:
+            out.accepted = True
+            return out
+        chain = stage_chain(problem, stage)
+        if chain is None:  # a thinned placement: left to the roadmap
             continue
-        raw = [problem.start, *seq.waypoints(problem.start, seq.rows)]
-        waypoints, sequential, makespan = _timed(problem, params, raw, memo)
-        if makespan <= limit:
-            return waypoints, sequential
-        return None
-    return None
+        if not chain:  # nothing to add (no placement needs expanding)
+            out.covered.add(stage)
+            continue
+        raw = _chain_waypoints(problem, chain)
+        if raw is None:
+            continue
+        out.covered.add(stage)
+        out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo))
+    return out
+
+
+def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarray] | None:
+    """Raw waypoints from ``chain[0]`` (the start) through each whole placement in turn.
+
+    Each leg is, in this order of preference: every robot at once,
+    straight along the minimum sum-of-squares assignment, when that step
+    is clear (a connection in the paper's sense; between CAPT-spaced
+    placements it is clear of the other robots by construction); or
+    :func:`planner.connect.sequenced_moves`, straight or, on the first and
+    the last leg (those the roadmap joins to the start's and the target's
+    graphs), around the obstacles when straight moves fail.  ``None`` when
+    a leg has neither.
+    """
+    pos = np.asarray(chain[0], float)
+    raw = [pos]
+    last = len(chain) - 2
+    for j, nxt in enumerate(chain[1:]):
+        nxt = np.asarray(nxt, float)
+        _, cols = linear_sum_assignment(((pos[:, None] - nxt[None]) ** 2).sum(axis=2))
+        if step_clear(problem, pos, nxt[cols]):
+            pos = nxt[cols]
+            raw.append(pos)
+            continue
+        bends = (False, True) if problem.obstacles else (False,)
+        for bent in bends:
+            seq = sequenced_moves(problem, pos, nxt, bent, groups=True)
+            if seq is not None:
+                break
+        else:
+            return None
+        steps = seq.waypoints(pos, seq.rows)
+        raw += steps
+        if steps:
+            pos = steps[-1]
+    return raw
 
 
 def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None = None):

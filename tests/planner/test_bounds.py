@@ -11,6 +11,7 @@ import planner.planning as planning
 from planner import PlannerParams, check_plan, plan
 from planner.bounds import bottleneck_distance, lower_bounds, min_sum_distance
 from planner.problem import Circle, Polygon, Problem
+from planner.upump import STAGES
 
 coords = st.integers(0, 12).map(float)  # small integers: many equal distances (ties)
 point = st.tuples(coords, coords)
@@ -90,17 +91,20 @@ def test_direct_try_gives_the_plan_the_roadmap_gives_for_the_same_route(monkeypa
     assert np.array_equal(direct.durations, via_roadmap.durations)
 
 
-def test_direct_try_steps_aside_when_its_plan_is_far_from_the_bound():
+def test_direct_tries_go_on_to_the_structured_stages_when_far_from_the_bound():
     # A wall with one gap: everybody must file through it, so the direct
-    # sequenced plan is slow and the roadmap searches further.
+    # sequenced plan is slow and the structured stages are tried too.
     wall = (Polygon(((0.0, 18.0), (17.0, 18.0), (17.0, 22.0), (0.0, 22.0))),
             Polygon(((23.0, 18.0), (40.0, 18.0), (40.0, 22.0), (23.0, 22.0))))
     start = np.array([[4.0 + 4 * i, 5.0] for i in range(8)])
     target = np.array([[4.0 + 4 * i, 35.0] for i in range(8)])
     problem = Problem(40, 40, wall, 1.0, 0.1, start, target)
-    assert planning._direct(problem, PlannerParams(), {}) is None
+    direct = planning._direct(problem, PlannerParams(), {})
+    assert not direct.accepted and direct.best[2] > 1.5 * lower_bounds(problem)[0]
+    assert set(direct.legs) >= {"sequenced", "guided chain"} and direct.covered == set(STAGES)
     result, stats = plan(problem, PlannerParams(), np.random.default_rng(0))
     assert check_plan(problem, result).value >= problem.margin
+    assert stats.makespan_s <= direct.best[2]
 
 
 def test_fixed_parameters_never_take_the_direct_try():
