@@ -25,6 +25,7 @@ from .problem import Problem, describe_obstacle
 __all__ = ["Clearance", "PlanInvalid", "check_plan", "min_clearance"]
 
 _TOL = 1e-9
+_PAIRS_PER_CALL = 2_000_000  # robot-robot closest approaches per call (bounds the temporaries)
 
 
 @dataclass(frozen=True)
@@ -126,30 +127,39 @@ def min_clearance(problem: Problem, plan: Plan) -> Clearance:
             j = int(jj[i, 1])
             best = Clearance(gap, "robot-robot", (min(i, j), max(i, j)), None, -1, 0.0)
 
-    for k in range(plan.steps):
-        a, b = w[k], w[k + 1]
-        moving = np.flatnonzero(np.any(a != b, axis=1))
-        if len(moving) == 0:
-            continue
-        am, bm = a[moving], b[moving]
-        cl, who = env.segment_clearance_detail(am, bm)
-        idx = int(np.argmin(cl))
-        if cl[idx] - r < best.value:
-            i = int(moving[idx])
-            ob = int(who[idx])
-            theta = _segment_theta(a[i], b[i], problem, ob)
-            best = Clearance(float(cl[idx] - r), "robot-obstacle" if ob >= 0 else "robot-wall",
-                             (i,), ob if ob >= 0 else None, k, _theta_to_time(plan, k, theta))
-        if m > 1:
-            dist, theta = closest_approach(am[:, None], bm[:, None], a[None], b[None], return_theta=True)
-            dist[np.arange(len(moving)), moving] = np.inf  # a robot and itself
+    # Every move of every step at once: move n is robot ``robot[n]`` going
+    # ``am[n] -> bm[n]`` in step ``step[n]`` (in step order, so the first
+    # minimum is the earliest, as a step-by-step scan would report).
+    step, robot = np.nonzero(np.any(w[1:] != w[:-1], axis=2))
+    if len(step) == 0:
+        return best
+    am, bm = w[step, robot], w[step + 1, robot]
+    cl, who = env.segment_clearance_detail(am, bm)
+    n = int(np.argmin(cl))
+    if cl[n] - r < best.value:
+        k, i, ob = int(step[n]), int(robot[n]), int(who[n])
+        theta = _segment_theta(w[k, i], w[k + 1, i], problem, ob)
+        best = Clearance(float(cl[n] - r), "robot-obstacle" if ob >= 0 else "robot-wall",
+                         (i,), ob if ob >= 0 else None, k, _theta_to_time(plan, k, theta))
+    if m > 1:
+        # Each move against every robot of its step (a parked robot is a
+        # zero-length move), in chunks that bound the temporaries.
+        chunk = max(1, _PAIRS_PER_CALL // m)
+        low, at = np.inf, None
+        for c0 in range(0, len(step), chunk):
+            sl = slice(c0, c0 + chunk)
+            dist = closest_approach(am[sl, None], bm[sl, None], w[step[sl]], w[step[sl] + 1])
+            dist[np.arange(len(dist)), robot[sl]] = np.inf  # a robot and itself
             flat = int(np.argmin(dist))
-            pi, j = divmod(flat, m)
-            gap = float(dist[pi, j] - 2 * r)
-            if gap < best.value:
-                i = int(moving[pi])
-                best = Clearance(gap, "robot-robot", (min(i, j), max(i, j)), None, k,
-                                 _theta_to_time(plan, k, float(theta[pi, j])))
+            if dist.flat[flat] < low:
+                low, at = float(dist.flat[flat]), (c0 + flat // m, flat % m)
+        gap = low - 2 * r
+        if gap < best.value:
+            n, j = at
+            k, i = int(step[n]), int(robot[n])
+            _, theta = closest_approach(w[k, i], w[k + 1, i], w[k, j], w[k + 1, j], return_theta=True)
+            best = Clearance(gap, "robot-robot", (min(i, j), max(i, j)), None, k,
+                             _theta_to_time(plan, k, float(theta)))
     return best
 
 
