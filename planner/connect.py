@@ -345,19 +345,16 @@ def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool
     """
     from scipy.optimize import linear_sum_assignment
 
-    from .guide import shortest_paths
+    from .guide import shortest_paths, straight_lengths
 
     va = np.asarray(va, float)
     vb = np.asarray(vb, float)
     m = len(va)
-    length = np.linalg.norm(va[:, None] - vb[None], axis=2)
     path_of = None
     if bent and problem.obstacles:
         length, path_of = shortest_paths(problem, va, vb)
-    elif problem.obstacles:
-        ii, jj = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
-        ok = problem.env.segments_clear(va[ii.ravel()], vb[jj.ravel()], problem.clearance)
-        length = np.where(ok.reshape(m, m), length, np.inf)
+    else:
+        length = straight_lengths(problem, va, vb)
     big = 1e18
     cost = np.where(np.isfinite(length), length**2, big)
     rows, cols = linear_sum_assignment(cost)

@@ -28,7 +28,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .problem import Circle, Problem
 
-__all__ = ["corner_points", "expanded_placement", "guided_placements", "shortest_paths"]
+__all__ = ["corner_points", "expanded_placement", "guided_placements", "shortest_paths", "straight_lengths"]
 
 
 def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
@@ -122,15 +122,38 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     return result
 
 
+def straight_lengths(problem: Problem, starts: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """``(len(starts), len(targets))`` straight distances, ``inf`` where the segment is not clear.
+
+    Remembered per problem and pair of placements (the straight and the
+    bent sequenced moves, and the shortest paths, all start from it).
+    """
+    starts = np.ascontiguousarray(starts, float)
+    targets = np.ascontiguousarray(targets, float)
+    key = (starts.tobytes(), targets.tobytes())
+    memo = problem.__dict__.setdefault("_straight_lengths", {})
+    if key not in memo:
+        direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
+        if problem.obstacles:
+            direct = np.where(_visible(problem, starts, targets), direct, np.inf)
+        memo[key] = direct
+    return memo[key]
+
+
 def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     corners, dist_cc, pred_cc = _corner_graph(problem)
-    direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
-    if problem.obstacles:
-        direct = np.where(_visible(problem, starts, targets), direct, np.inf)
+    direct = straight_lengths(problem, starts, targets)
     if len(corners) == 0:
         return direct, lambda i, j: np.stack([starts[i], targets[j]])
-    dsc = np.where(_visible(problem, starts, corners), np.linalg.norm(starts[:, None] - corners[None], axis=2), np.inf)
-    dct = np.where(_visible(problem, corners, targets), np.linalg.norm(corners[:, None] - targets[None], axis=2), np.inf)
+    # starts -> corners and corners -> targets in one clearance call
+    m, c = len(starts), len(corners)
+    a = np.concatenate([np.repeat(starts, c, axis=0), np.tile(corners, (len(targets), 1))])
+    b = np.concatenate([np.tile(corners, (m, 1)), np.repeat(targets, c, axis=0)])
+    ok = problem.env.segments_clear(a, b, problem.clearance)
+    vis_sc = ok[: m * c].reshape(m, c)
+    vis_ct = ok[m * c :].reshape(len(targets), c).T
+    dsc = np.where(vis_sc, np.linalg.norm(starts[:, None] - corners[None], axis=2), np.inf)
+    dct = np.where(vis_ct, np.linalg.norm(corners[:, None] - targets[None], axis=2), np.inf)
     # start -> first corner -> ... -> last corner, minimised over the corners
     via_first = dsc[:, :, None] + dist_cc[None]  # (m, c, c): start, first, last
     first_of = np.argmin(via_first, axis=1)  # (m, c): best first corner per last corner
