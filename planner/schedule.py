@@ -292,7 +292,16 @@ def _durations(problem: Problem, lengths: np.ndarray) -> np.ndarray:
     return np.where(lengths > 0, step_duration(lengths, problem.max_speed, problem.max_accel), 0.0)
 
 
-def _try_shortcut(problem: Problem, w: np.ndarray, r: int, j1: int, j2: int) -> bool:
+def _shortcut_tables(problem: Problem, w: np.ndarray, r: int):
+    """Per step of ``w``: robot ``r``'s move length, the longest move of the others,
+    and the step's duration (what :func:`_try_shortcut` reads for every window)."""
+    length = np.linalg.norm(w[1:] - w[:-1], axis=2)  # (L, m)
+    own = length[:, r].copy()
+    others = np.delete(length, r, axis=1).max(axis=1, initial=0.0)  # (L,)
+    return own, others, _durations(problem, np.maximum(others, own))
+
+
+def _try_shortcut(problem: Problem, w: np.ndarray, r: int, j1: int, j2: int, tables=None) -> bool:
     """Straighten robot ``r`` between waypoints ``j1`` and ``j2`` if clear and faster.
 
     The straight displacement is shared among the steps in proportion to
@@ -300,20 +309,22 @@ def _try_shortcut(problem: Problem, w: np.ndarray, r: int, j1: int, j2: int) -> 
     when it fits; steps where only ``r`` moved lose that move.  Checked
     exactly: obstacles, and the closest approach to every other robot in
     every step of the window.  Edits ``w`` in place when accepted.
+    ``tables`` are :func:`_shortcut_tables` of ``w`` and ``r`` (computed
+    when not given).
     """
     if j2 - j1 < 1:
         return False
-    seg = w[j1 + 1 : j2 + 1] - w[j1:j2]  # (L, m, 2)
-    length = np.linalg.norm(seg, axis=2)  # (L, m)
-    own = length[:, r].copy()
-    if own.sum() <= 1e-12:
+    own_all, others_all, dur_all = tables if tables is not None else _shortcut_tables(problem, w, r)
+    own = own_all[j1:j2]
+    own_sum = own.sum()
+    if own_sum <= 1e-12:
         return False
-    others = np.delete(length, r, axis=1).max(axis=1, initial=0.0)  # (L,)
-    old_cost = _durations(problem, np.maximum(others, own)).sum()
     d = w[j2, r] - w[j1, r]
     dist = float(np.linalg.norm(d))
-    if dist >= own.sum() - 1e-9:
+    if dist >= own_sum - 1e-9:
         return False  # already straight
+    others = others_all[j1:j2]
+    old_cost = dur_all[j1:j2].sum()
     cap = others.sum()
     if cap > 1e-12:
         frac = others / cap
@@ -326,6 +337,7 @@ def _try_shortcut(problem: Problem, w: np.ndarray, r: int, j1: int, j2: int) -> 
         return False
     cum = np.concatenate([[0.0], np.cumsum(frac)])
     ys = w[j1, r] + cum[:, None] * d  # (L + 1, 2)
+    ys[-1] = w[j2, r]  # exactly where the window ends
     a, b = ys[:-1], ys[1:]
     if not problem.env.segments_clear(a, b, problem.clearance).all():
         return False
@@ -352,13 +364,17 @@ def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.nda
     for _ in range(passes):
         improved = False
         for r in range(w.shape[1]):
+            tables = None  # of the current w, for robot r
             stack = [(0, len(w) - 1)]
             while stack:
                 j1, j2 = stack.pop()
                 if j2 - j1 < 2:
                     continue
-                if _try_shortcut(problem, w, r, j1, j2):
+                if tables is None:
+                    tables = _shortcut_tables(problem, w, r)
+                if _try_shortcut(problem, w, r, j1, j2, tables):
                     improved = True
+                    tables = None
                     continue
                 mid = (j1 + j2) // 2
                 stack.append((mid, j2))
