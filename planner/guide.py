@@ -32,21 +32,32 @@ __all__ = ["corner_points", "expanded_placement", "guided_placements", "shortest
 
 
 def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
-    """Points just outside every convex polygon corner and around every circle."""
+    """Points just outside every convex polygon corner and around every circle.
+
+    Obstacle by obstacle, in the problem's order: twelve points around a
+    circle; for a polygon, one point along each outward edge normal of
+    every convex corner, then one on each corner's bisector.
+    """
     clr = problem.clearance * slack
-    pts = []
-    for ob in problem.obstacles:
-        if isinstance(ob, Circle):
-            k = 12
-            ang = np.arange(k) * 2 * np.pi / k
-            # The ring's chords must stay clear too: push by 1/cos(pi/k).
-            rad = (ob.radius + clr) / np.cos(np.pi / k)
-            pts.append(np.asarray(ob.center) + rad * np.stack([np.cos(ang), np.sin(ang)], axis=1))
-            continue
-        v = ob.vertices  # counter-clockwise
-        prev = np.roll(v, 1, axis=0)
-        nxt = np.roll(v, -1, axis=0)
-        e1 = v - prev
+    env = problem.env
+    if not problem.obstacles:
+        return np.zeros((0, 2))
+    per_obstacle: dict[int, np.ndarray] = {}
+    if len(env.circle_radii):
+        k = 12
+        ang = np.arange(k) * 2 * np.pi / k
+        unit = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+        # The ring's chords must stay clear too: push by 1/cos(pi/k).
+        rad = (env.circle_radii + clr) / np.cos(np.pi / k)
+        ring = env.circle_centers[:, None] + rad[:, None, None] * unit[None]  # (C, k, 2)
+        per_obstacle.update(zip(env.circle_ids, ring))
+    if env.polygons:
+        v, nxt, _ = env.edges  # every polygon's vertices (counter-clockwise) and their successors
+        starts = env.edge_starts
+        ends = np.append(starts[1:], len(v))
+        prev_idx = np.arange(len(v)) - 1
+        prev_idx[starts] = ends - 1  # the previous vertex within the same polygon
+        e1 = v - v[prev_idx]
         e2 = nxt - v
         convex = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) > 0
         n1 = np.stack([e1[:, 1], -e1[:, 0]], axis=1)  # outward normals (CCW)
@@ -58,11 +69,11 @@ def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
         bis = n1 + n2
         bis /= np.maximum(np.linalg.norm(bis, axis=1, keepdims=True), 1e-12)
         cos_half = np.maximum((bis * n1).sum(axis=1, keepdims=True), 0.2)
-        for p in (v + clr * n1, v + clr * n2, v + clr * bis / cos_half):
-            pts.append(p[convex])
-    if not pts:
-        return np.zeros((0, 2))
-    pts = np.concatenate(pts)
+        cand = (v + clr * n1, v + clr * n2, v + clr * bis / cos_half)
+        for pid, s0, s1 in zip(env.polygon_ids, starts, ends):
+            sel = s0 + np.flatnonzero(convex[s0:s1])
+            per_obstacle[pid] = np.concatenate([c[sel] for c in cand])
+    pts = np.concatenate([per_obstacle[k] for k in sorted(per_obstacle)])
     inside = (pts[:, 0] > 0) & (pts[:, 0] < problem.width) & (pts[:, 1] > 0) & (pts[:, 1] < problem.height)
     pts = pts[inside]
     return pts[problem.env.points_clear(pts, problem.clearance)]
