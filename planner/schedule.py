@@ -38,7 +38,7 @@ import numpy as np
 from .geometry import closest_approach, point_segment_distance
 from .problem import Problem
 
-__all__ = ["merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", "step_clear", "steps_of"]
+__all__ = ["merge_moves", "merge_steps", "schedule", "shortcut", "split_moves", "step_clear", "steps_clear", "steps_of"]
 
 
 def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
@@ -400,17 +400,49 @@ def step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
+def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`step_clear` of ``K`` steps at once: step ``k`` moves every robot ``a[k] -> b[k]``.
+
+    ``a`` and ``b`` are ``(K, m, 2)``; the same exact tests, in one
+    clearance call and chunked closest-approach calls.
+    """
+    n_steps, m = a.shape[:2]
+    kk, rr = np.nonzero(np.any(a != b, axis=2))  # every moving robot of every step
+    bad = np.zeros(n_steps, bool)
+    if len(kk) == 0:
+        return ~bad
+    sa, sb = a[kk, rr], b[kk, rr]
+    bad[kk[~problem.env.segments_clear(sa, sb, problem.clearance)]] = True
+    if m > 1:
+        chunk = max(1, _CHUNK // m)
+        for c0 in range(0, len(kk), chunk):
+            sl = slice(c0, c0 + chunk)
+            d = closest_approach(sa[sl, None], sb[sl, None], a[kk[sl]], b[kk[sl]])  # (rows, m)
+            d[np.arange(len(d)), rr[sl]] = np.inf  # a robot and itself
+            bad[kk[sl][(d < problem.separation).any(axis=1)]] = True
+    return ~bad
+
+
 def merge_steps(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
-    """Greedily join consecutive steps into straight ones where that is clear."""
-    w = [np.asarray(x, float) for x in waypoints]
+    """Greedily join consecutive steps into straight ones where that is clear.
+
+    Every join of two consecutive original steps is tested up front
+    (:func:`steps_clear`); a join onto a step that is itself already joined
+    is tested when the greedy pass reaches it.
+    """
+    w = np.asarray(waypoints, float)
     if len(w) <= 2:
-        return np.asarray(w)
+        return w
+    two = steps_clear(problem, w[:-2], w[2:])  # two[k]: w[k] -> w[k + 2] straight is clear
     out = [w[0], w[1]]
-    for nxt in w[2:]:
-        if step_clear(problem, out[-2], nxt):
-            out[-1] = nxt  # the last step now runs straight to ``nxt``
+    first = 0  # index in w of out[-2]
+    for i in range(2, len(w)):
+        clear = two[first] if i - first == 2 else step_clear(problem, w[first], w[i])
+        if clear:
+            out[-1] = w[i]  # the last step now runs straight to ``w[i]``
         else:
-            out.append(nxt)
+            out.append(w[i])
+            first = i - 1
     return np.asarray(out)
 
 

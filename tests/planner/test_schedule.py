@@ -145,3 +145,20 @@ def test_a_move_never_joins_a_layer_through_a_robot_parked_there():
     out = schedule(problem, np.array([w0, w1, w2, w3]))
     assert np.array_equal(out, np.array([w0, w1, w3]))  # layers: {2}, {1, 0}
     check_plan(problem, _timed_plan(problem, out))
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**31), st.integers(1, 9))
+def test_steps_clear_is_step_clear_for_every_step(seed, m):
+    """The batched test agrees with the one-step test, on steps that are and are not clear."""
+    from planner.schedule import step_clear, steps_clear
+
+    problem, rng = _random_problem(seed, m)
+    k = 12
+    a = np.repeat(problem.start[None], k, axis=0)
+    b = a.copy()
+    for j in range(k):  # a few robots each jump somewhere, some through obstacles or each other
+        movers = rng.choice(m, size=rng.integers(0, m + 1), replace=False)
+        b[j, movers] = problem.target[rng.permutation(m)[: len(movers)]]
+    fast = steps_clear(problem, a, b)
+    assert fast.tolist() == [step_clear(problem, a[j], b[j]) for j in range(k)]
