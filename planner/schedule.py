@@ -50,41 +50,58 @@ def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
     return np.split(robot, np.searchsorted(step, np.arange(1, len(w) - 1)))
 
 
-def _segment_clear(problem: Problem, a, b, parked: np.ndarray) -> bool:
-    """A robot moving ``a -> b`` keeps clear of the world and of ``parked`` robots."""
-    if not problem.env.segments_clear(a[None], b[None], problem.clearance)[0]:
-        return False
-    if len(parked) == 0:
-        return True
-    return bool(point_segment_distance(parked, a, b).min() >= problem.separation)
-
-
 def merge_moves(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
-    """Join consecutive single-robot moves of one robot when the direct move is clear."""
+    """Join consecutive single-robot moves of one robot when the direct move is clear.
+
+    Greedy along each run of steps that move the same robot alone: from the
+    run's first position the move is extended step by step while the
+    straight move stays clear of the world and of the parked robots; where
+    it stops, a new extension starts.  The candidate extensions of every
+    run are tested together, one round per restart.
+    """
     w = np.asarray(waypoints, float)
     if len(w) <= 2:
         return w
-    out = [w[0]]
     movers = steps_of(w)
+    single = np.array([len(mv) == 1 for mv in movers])
+    who = np.array([int(mv[0]) if len(mv) == 1 else -1 for mv in movers])
+    # maximal runs of >= 2 steps moving the same robot alone: (first step, last step, robot)
+    pending = []
     k = 0
     while k < len(movers):
-        cur = w[k + 1]
-        if len(movers[k]) == 1:
-            r = int(movers[k][0])
-            start = out[-1][r]
-            j = k
-            # Extend while the next step moves the same robot alone and the
-            # straight move from ``start`` stays clear.
-            while j + 1 < len(movers) and len(movers[j + 1]) == 1 and int(movers[j + 1][0]) == r:
-                end = w[j + 2][r]
-                parked = np.delete(out[-1], r, axis=0)
-                if not _segment_clear(problem, start, end, parked):
-                    break
+        j = k
+        if single[k]:
+            while j + 1 < len(movers) and single[j + 1] and who[j + 1] == who[k]:
                 j += 1
-            if j > k:
-                cur = w[j + 1]
-                k = j
-        out.append(cur)
+        if j > k:
+            pending.append((k, j, int(who[k])))
+        k = j + 1
+    last_of = {}  # first step of a joined move -> its last step
+    sep = problem.separation
+    while pending:
+        # step k0 extended to end at waypoint e (k0 + 2 <= e <= k1 + 1)
+        cand = [(n, k0, e, r) for n, (k0, k1, r) in enumerate(pending) for e in range(k0 + 2, k1 + 2)]
+        n_of, k_of, e_of, r_of = (np.array(c) for c in zip(*cand))
+        a, b = w[k_of, r_of], w[e_of, r_of]
+        ok = problem.env.segments_clear(a, b, problem.clearance)
+        if w.shape[1] > 1:
+            d = point_segment_distance(w[k_of], a[:, None], b[:, None])  # (n, m): the parked robots
+            d[np.arange(len(d)), r_of] = np.inf
+            ok &= d.min(axis=1) >= sep
+        nxt = []
+        for n, (k0, k1, r) in enumerate(pending):
+            mine = ok[n_of == n]
+            j = k0 + (len(mine) if mine.all() else int(np.argmin(mine)))  # leading successes
+            if j > k0:
+                last_of[k0] = j
+            if k1 - (j + 1) >= 1:  # two or more steps left: extend again from there
+                nxt.append((j + 1, k1, r))
+        pending = nxt
+    out = [w[0]]
+    k = 0
+    while k < len(movers):
+        k = last_of.get(k, k)
+        out.append(w[k + 1])
         k += 1
     return np.asarray(out)
 

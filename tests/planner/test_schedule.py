@@ -162,3 +162,49 @@ def test_steps_clear_is_step_clear_for_every_step(seed, m):
         b[j, movers] = problem.target[rng.permutation(m)[: len(movers)]]
     fast = steps_clear(problem, a, b)
     assert fast.tolist() == [step_clear(problem, a[j], b[j]) for j in range(k)]
+
+
+def _merge_moves_one_by_one(problem, w):
+    """merge_moves as a plain greedy loop, one clearance test at a time (the reference)."""
+    from planner.geometry import point_segment_distance
+
+    out = [w[0]]
+    movers = steps_of(w)
+    k = 0
+    while k < len(movers):
+        cur = w[k + 1]
+        if len(movers[k]) == 1:
+            r = int(movers[k][0])
+            start, j = out[-1][r], k
+            while j + 1 < len(movers) and len(movers[j + 1]) == 1 and int(movers[j + 1][0]) == r:
+                end = w[j + 2][r]
+                parked = np.delete(out[-1], r, axis=0)
+                if not problem.env.segments_clear(start[None], end[None], problem.clearance)[0]:
+                    break
+                if len(parked) and point_segment_distance(parked, start, end).min() < problem.separation:
+                    break
+                j += 1
+            if j > k:
+                cur, k = w[j + 1], j
+        out.append(cur)
+        k += 1
+    return np.asarray(out)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31), st.integers(1, 8))
+def test_merge_moves_batched_is_the_greedy_loop(seed, m):
+    problem, rng = _random_problem(seed, m)
+    w = [problem.start.copy()]
+    for _ in range(30):  # runs of single-robot moves, now and then several robots at once
+        nxt = w[-1].copy()
+        movers = rng.choice(m, size=1 if rng.random() < 0.8 else rng.integers(1, m + 1), replace=False)
+        if rng.random() < 0.7 and len(w) > 1:  # keep moving the robot of the last step
+            moved = np.flatnonzero(np.any(w[-1] != w[-2], axis=1))
+            movers = moved[:1] if len(moved) else movers
+        nxt[movers] += rng.normal(0, 3, size=(len(movers), 2))
+        w.append(nxt)
+    w = np.asarray(w)
+    from planner.schedule import merge_moves
+
+    assert np.array_equal(merge_moves(problem, w), _merge_moves_one_by_one(problem, w))
