@@ -39,7 +39,7 @@ import numpy as np
 from planner import NoPlanFound, PlannerParams, plan
 from planner.bounds import lower_bounds
 
-from ._common import machine_info, markdown_table, percentile, random_problem
+from ._common import machine_info, markdown_table, percentile, random_problem, warm_up_planner
 
 __all__ = ["COLUMNS", "fit_exponent", "format_report", "main", "run_size", "scaled_problem", "side_for"]
 
@@ -83,20 +83,8 @@ def _run_size(m: int, seeds: int, time_limit: float) -> dict:
     bounds = [lower_bounds(p)[0] for p in problems]
     params = PlannerParams(time_limit=time_limit)
     # Warm-up, so that lazy imports and first-call costs land before the
-    # baseline instead of in the first measured run: the scipy modules the
-    # planner imports where it first needs them, then a small run in auto
-    # mode (often solved by the direct try alone) and one at fixed g and q
-    # (which always samples pebble graphs and connects them).
-    import scipy.optimize  # noqa: F401
-    import scipy.sparse.csgraph  # noqa: F401
-    import scipy.spatial  # noqa: F401
-
-    warm = np.random.default_rng(10**6)
-    for warm_params in (params, PlannerParams(g=1, q=16, time_limit=time_limit)):
-        try:
-            plan(scaled_problem(3, warm), warm_params, warm)
-        except NoPlanFound:
-            pass
+    # baseline instead of in the first measured run.
+    warm_up_planner(time_limit)
     base = _maxrss_mib()
     records = []
     for s, (problem, rng, lb) in enumerate(zip(problems, rngs, bounds)):
