@@ -13,8 +13,10 @@ Filled gaps, following Solovey and Halperin's KPUMP/UPUMP:
 * The paper's CONNECTIVITY_MATRIX / WAY_FINDER / FIND_PATH are a shortest
   path search over the roadmap (Dijkstra, weighted by step durations and an
   estimate of the pebble moves between connections).
-* ``g`` and ``q`` may be ``auto``: an anytime loop that first tries the
-  start and target graphs directly, then keeps adding one sampled pebble
+* ``g`` and ``q`` may be ``auto``: an anytime loop that first runs the
+  structured stages (:data:`STAGES`; those the planner's direct tries
+  already ran on whole placements are skipped, see
+  :func:`planner.planning._direct`), then keeps adding one sampled pebble
   graph at a time, connecting it to every graph so far, doubling the
   attempts per pair every few graphs, until the start and target nodes are
   connected or the time limit passes (the paper's open problem, Sec. VI).
