@@ -130,8 +130,9 @@ class _Direct:
         """Whether the roadmap has nothing left to add.
 
         With a plan in hand, the roadmap's own versions of the stages whose
-        chains failed here rarely beat it (on the paper's scenarios the
-        median makespans are the same with and without them), and its last
+        chains failed here rarely beat it (over 20 seeds of every paper
+        scenario they changed one median makespan, Table III row 4's, from
+        1.45x to 1.40x the bound), and its last
         stage, one graph holding both placements, only pays where robots
         must file through a narrow passage and the plan is far from the
         bound (``_GOOD_ENOUGH[-1]``).
