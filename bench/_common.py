@@ -31,6 +31,8 @@ __all__ = [
     "markdown_table",
     "percentile",
     "random_problem",
+    "scaled_problem",
+    "side_for",
     "straight_line_waypoints",
     "warm_up_planner",
 ]
@@ -59,9 +61,8 @@ def warm_up_planner(time_limit: float = 10.0) -> None:
 
     warm = np.random.default_rng(10**6)
     for params in (PlannerParams(time_limit=time_limit), PlannerParams(g=1, q=16, time_limit=time_limit)):
-        side = 40.0 * math.sqrt(3 / 11.0)
         try:
-            plan(random_problem(3, side, warm, size=(4.0 * side / 40.0, 8.0 * side / 40.0)), params, warm)
+            plan(scaled_problem(3, warm), params, warm)
         except NoPlanFound:
             pass
 
@@ -130,6 +131,17 @@ def random_problem(
 
 # ----------------------------------------------------------------------------
 # peer paths
+
+
+def side_for(m: int) -> float:
+    """Workspace side for ``m`` robots: 40 at m = 11, growing with sqrt(m)."""
+    return 40.0 * math.sqrt(m / 11.0)
+
+
+def scaled_problem(m: int, rng: np.random.Generator) -> Problem:
+    """The scaling benchmark's random problem for ``m`` robots (see :mod:`bench.scaling`)."""
+    side = side_for(m)
+    return random_problem(m, side, rng, size=(4.0 * side / 40.0, 8.0 * side / 40.0))
 
 
 def assigned_targets(problem: Problem) -> np.ndarray:

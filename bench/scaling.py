@@ -39,7 +39,7 @@ import numpy as np
 from planner import NoPlanFound, PlannerParams, plan
 from planner.bounds import lower_bounds
 
-from ._common import machine_info, markdown_table, percentile, random_problem, warm_up_planner
+from ._common import machine_info, markdown_table, percentile, scaled_problem, side_for, warm_up_planner
 
 __all__ = ["COLUMNS", "fit_exponent", "format_report", "main", "run_size", "scaled_problem", "side_for"]
 
@@ -55,17 +55,6 @@ COLUMNS = [
     "median steps",
 ]
 """Columns of the scaling table (the keys of :func:`main`'s rows)."""
-
-
-def side_for(m: int) -> float:
-    """Workspace side for ``m`` robots: 40 at m = 11, growing with sqrt(m)."""
-    return 40.0 * math.sqrt(m / 11.0)
-
-
-def scaled_problem(m: int, rng: np.random.Generator):
-    """The scaling benchmark's random problem for ``m`` robots (see the module docstring)."""
-    side = side_for(m)
-    return random_problem(m, side, rng, size=(4.0 * side / 40.0, 8.0 * side / 40.0))
 
 
 def _maxrss_mib() -> float:

@@ -386,10 +386,10 @@ def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool
     first = (path_to_src < sep).T | (path_to_dst < sep)
     first &= moving[None, :] | moving[:, None]
     order = _topological(first)
+    if order is None and not groups:
+        return None
     dur = step_duration(np.linalg.norm(pb - pa, axis=2), problem.max_speed, problem.max_accel).sum(axis=1)
     if order is None:
-        if not groups:
-            return None
         return _grouped(rows, cols, paths, pa, pb, first, dur, sep)
     finish = np.zeros(m)
     for i in order:  # longest chain of dependent moves

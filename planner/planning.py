@@ -65,10 +65,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
             problem, params, rng, deadline, makespan=lambda rm, route: evaluate(rm, route)[2],
             incumbent=incumbent, covered=set() if direct is None else direct.covered,
         )
-        best = None
-        if direct is not None and direct.best is not None:
-            waypoints, sequential, makespan, label = direct.best
-            best = (waypoints, sequential, makespan, label)
+        best = None if direct is None else direct.best  # (waypoints, sequential, makespan, label)
         for route in roadmap.routes(source, goal, _ROUTES):
             waypoints, sequential, makespan = evaluate(roadmap, route)
             if best is None or makespan < best[2]:
@@ -168,9 +165,9 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | No
         return None
     out = _Direct()
     bound = lower_bounds(problem)[0]
-    _, cols = linear_sum_assignment(((problem.start[:, None] - problem.target[None]) ** 2).sum(axis=2))
-    one = np.stack([problem.start, problem.target[cols]])
-    if step_clear(problem, one[0], one[1]):
+    end = _at_once(problem, problem.start, problem.target)
+    if end is not None:
+        one = np.stack([problem.start, end])
         out.offer("one step", 1, (one, 1, _makespan(problem, one)))
         if out.best[2] <= _GOOD_ENOUGH[1] * bound:
             out.accepted = True
@@ -193,31 +190,44 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | No
     return out
 
 
+def _at_once(problem: Problem, pos: np.ndarray, nxt: np.ndarray) -> np.ndarray | None:
+    """Every robot at once from ``pos`` straight to ``nxt`` along the minimum
+    sum-of-squares assignment: the placement it reaches (robot ``i`` at row
+    ``i``) when that step is exactly clear, else ``None``.  Remembered per
+    problem and pair of placements (the one-step try is also the first leg
+    of the sequenced stage's chain)."""
+    pos = np.ascontiguousarray(pos, float)
+    nxt = np.ascontiguousarray(nxt, float)
+    key = (pos.tobytes(), nxt.tobytes())
+    memo = problem.__dict__.setdefault("_at_once", {})
+    if key not in memo:
+        _, cols = linear_sum_assignment(((pos[:, None] - nxt[None]) ** 2).sum(axis=2))
+        memo[key] = nxt[cols] if step_clear(problem, pos, nxt[cols]) else None
+    return memo[key]
+
+
 def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarray] | None:
     """Raw waypoints from ``chain[0]`` (the start) through each whole placement in turn.
 
     Each leg is, in this order of preference: every robot at once,
     straight along the minimum sum-of-squares assignment, when that step
-    is clear (a connection in the paper's sense; between CAPT-spaced
-    placements it is clear of the other robots by construction); or
-    :func:`planner.connect.sequenced_moves`, straight or, on the first and
-    the last leg (those the roadmap joins to the start's and the target's
-    graphs), around the obstacles when straight moves fail.  ``None`` when
-    a leg has neither.
+    is clear (:func:`_at_once`: a connection in the paper's sense; between
+    CAPT-spaced placements it is clear of the other robots by
+    construction); or :func:`planner.connect.sequenced_moves` with groups,
+    straight or, among obstacles, around them when straight moves fail.
+    ``None`` when a leg has neither.
     """
     pos = np.asarray(chain[0], float)
     raw = [pos]
-    last = len(chain) - 2
-    for j, nxt in enumerate(chain[1:]):
-        nxt = np.asarray(nxt, float)
-        _, cols = linear_sum_assignment(((pos[:, None] - nxt[None]) ** 2).sum(axis=2))
-        if step_clear(problem, pos, nxt[cols]):
-            pos = nxt[cols]
+    bends = (False, True) if problem.obstacles else (False,)
+    for nxt in chain[1:]:
+        end = _at_once(problem, pos, nxt)
+        if end is not None:
+            pos = end
             raw.append(pos)
             continue
-        bends = (False, True) if problem.obstacles else (False,)
         for bent in bends:
-            seq = sequenced_moves(problem, pos, nxt, bent, groups=True)
+            seq = sequenced_moves(problem, pos, np.asarray(nxt, float), bent, groups=True)
             if seq is not None:
                 break
         else:

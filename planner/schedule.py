@@ -403,18 +403,9 @@ def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.nda
 
 
 def step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
-    """Exact check of one step in which every robot goes straight ``a -> b``."""
-    moving = np.flatnonzero(np.any(a != b, axis=1))
-    if len(moving) == 0:
-        return True
-    if not problem.env.segments_clear(a[moving], b[moving], problem.clearance).all():
-        return False
-    if len(a) > 1:
-        d = closest_approach(a[moving][:, None], b[moving][:, None], a[None], b[None])
-        d[np.arange(len(moving)), moving] = np.inf
-        if d.min() < problem.separation:
-            return False
-    return True
+    """Exact check of one step in which every robot goes straight ``a -> b``
+    (:func:`steps_clear` of that one step)."""
+    return bool(steps_clear(problem, np.asarray(a)[None], np.asarray(b)[None])[0])
 
 
 def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:

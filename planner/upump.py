@@ -276,8 +276,11 @@ def stage_chain(problem: Problem, stage: str) -> list[np.ndarray] | None:
 
 
 def _capt_ends(problem: Problem):
-    """The expanded start and target (``None`` where no expansion is needed or fits)."""
-    return expanded_placement(problem, problem.start), expanded_placement(problem, problem.target)
+    """The expanded start and target (``None`` where no expansion is needed or fits); cached."""
+    if "_capt_ends" not in problem.__dict__:
+        problem.__dict__["_capt_ends"] = (expanded_placement(problem, problem.start),
+                                          expanded_placement(problem, problem.target))
+    return problem.__dict__["_capt_ends"]
 
 
 #: Before each structured stage (after the first), the factor of the
@@ -401,10 +404,7 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
         q_used, g_used = params.q, params.g
 
     stats = _finish(stats, rm, g_used, q_used, t0)
-    if not connected() and incumbent is not None:
-        stats.found = True
-        return rm, source, goal, stats
-    if not connected():
+    if not connected() and incumbent is None:
         raise NoPlanFound(
             f"start and target not connected after {g_used} pebble graphs and "
             f"{rm.attempts} connection attempts",

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import closest_approach
-from .plan import Plan
+from .plan import Plan, min_jerk_s
 from .problem import Problem, describe_obstacle
 
 __all__ = ["Clearance", "PlanInvalid", "check_plan", "min_clearance"]
@@ -68,10 +68,9 @@ def _theta_to_time(plan: Plan, step: int, theta: float) -> float:
     if step < 0:
         return 0.0
     lo, hi = 0.0, 1.0
-    for _ in range(60):  # s is increasing: bisection on s(u) = theta (min_jerk's s, in floats)
+    for _ in range(60):  # s is increasing: bisection on s(u) = theta, in floats
         mid = 0.5 * (lo + hi)
-        u2 = mid * mid
-        if u2 * mid * (10.0 - 15.0 * mid + 6.0 * u2) < theta:
+        if min_jerk_s(mid) < theta:
             lo = mid
         else:
             hi = mid
