@@ -619,8 +619,10 @@ def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
     """
     s = scenario
     try:
-        clearance = s.radius + s.margin
-        sep = 2 * s.radius + s.margin
+        # Formations are spaced for the margin the planner plans with
+        # (planner.margin_extra inflates it), so that they fit it too.
+        clearance = s.radius + s.margin + s.planner.margin_extra
+        sep = 2 * s.radius + s.margin + s.planner.margin_extra
         explicit = [np.asarray(p.points, float) for p in (s.start, s.target) if p.points is not None]
         avoid = np.concatenate(explicit) if explicit else np.zeros((0, 2))
         obstacles = []
