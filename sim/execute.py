@@ -45,6 +45,7 @@ from .realism import (
     Events,
     Resistance,
     Sensor,
+    phase_margin,
     real_masses,
     streams,
 )
@@ -93,6 +94,11 @@ class SimReport:
     disturbances: every impulse, push and failure as applied.
     replans: every replan (:class:`sim.recovery.Replan`).
     stopped: why the run ended early (a replan found no way on), or ``""``.
+    targets_filled: how many of the problem's targets have a robot (working
+        or failed) within ``tolerance`` at the end (matching).
+    phase_margin_deg: the controller's phase margin with its delays
+        (:func:`sim.realism.phase_margin`; latency plus half the hold);
+        at or below zero the loop is unstable and the verdict says so.
     """
 
     contacts: tuple[Contact, ...]
@@ -118,6 +124,8 @@ class SimReport:
     disturbances: tuple[Disturbance, ...] = ()
     replans: tuple[Replan, ...] = ()
     stopped: str = ""
+    targets_filled: int = -1
+    phase_margin_deg: float = float("nan")
 
     @property
     def ok(self) -> bool:
@@ -149,11 +157,17 @@ class SimReport:
             parts.append(f"robots {who} end off target (worst {self.final_error:.3g})")
         if self.failed:
             parts.append(f"robots {', '.join(str(i) for i in self.failed)} failed")
+        m = 0 if self.reached_robots is None else len(self.reached_robots)
+        if 0 <= self.targets_filled < m:
+            parts.append(f"{self.targets_filled} of {m} targets filled")
         if self.replans:
             parts.append(f"{len(self.replans)} replans")
         if not self.contacts and not self.stopped and self.reached:
             parts.insert(0, "no contact, every working robot on a target" if self.failed
                          else "no contact, every robot on a target")
+        if self.phase_margin_deg <= 0:
+            parts.append(f"the controller is unstable with its delays (phase margin {self.phase_margin_deg:.0f} "
+                         f"deg): lower kp and kd, or the latency")
         return "; ".join(parts)
 
     def to_dict(self) -> dict:
@@ -196,6 +210,8 @@ class SimReport:
             d["disturbances"]["list_truncated"] = True
         d["replans"] = [r.to_dict() for r in self.replans]
         d["stopped"] = self.stopped or None
+        d["targets_filled"] = self.targets_filled
+        d["phase_margin_deg"] = _finite(self.phase_margin_deg)
         d["verdict"] = self.verdict
         return d
 
@@ -321,11 +337,14 @@ def _execute(problem, plan, params, progress) -> SimReport:
         problem, world, witness, monitor, times, positions, tracking, reached, final_error, per_robot,
         sim_time=float(n_steps * dt), wall0=wall0, step_time=step_time,
         masses=np.full(m, mass), failed=(), disturbances=(), replans=(), stopped="",
+        targets_filled=_filled(positions[-1], problem.target, float(params.tolerance)),
+        phase_margin_deg=phase_margin(kp, kd, 0.5 * dt),
     )
 
 
 def _report(problem, world, witness, monitor, times, positions, tracking, reached, final_error, per_robot,
-            *, sim_time, wall0, step_time, masses, failed, disturbances, replans, stopped) -> SimReport:
+            *, sim_time, wall0, step_time, masses, failed, disturbances, replans, stopped,
+            targets_filled, phase_margin_deg) -> SimReport:
     contacts = sorted(
         witness.contacts() + monitor.contacts(),
         key=lambda c: (c.time, c.witness != "pymunk", c.kind, c.a, c.b),
@@ -363,6 +382,8 @@ def _report(problem, world, witness, monitor, times, positions, tracking, reache
         disturbances=tuple(disturbances),
         replans=tuple(replans),
         stopped=stopped,
+        targets_filled=targets_filled,
+        phase_margin_deg=phase_margin_deg,
     )
 
 
@@ -551,8 +572,8 @@ def _execute_real(problem, plan, params, rng, planner_params, progress) -> SimRe
             fixed = start[~working]
             wall = perf()
             try:
-                new_plan, kept, dropped, separated, planning = replan(
-                    problem, start[rows], fixed, problem.target, replan_params, rec.time_limit, gens["replan"])
+                found = replan(problem, start[rows], fixed, problem.target, replan_params, rec.time_limit,
+                               gens["replan"])
             except RecoveryFailed as exc:
                 replans.append(Replan(trigger_time, t_now, trigger_reason, len(rows), tuple(failed), (), False,
                                       False, 0, 0.0, None, perf() - wall, str(exc)))
@@ -560,11 +581,13 @@ def _execute_real(problem, plan, params, rng, planner_params, progress) -> SimRe
                 break
             from planner import min_clearance
 
-            targets = np.asarray(problem.target, float)[kept]
+            new_plan = found.plan
+            targets = found.targets
             gap = _finite(min_clearance(_replan_world(problem, fixed, start[rows], targets), new_plan).value)
             replans.append(Replan(trigger_time, t_now, trigger_reason, len(rows), tuple(failed),
-                                  tuple(int(i) for i in dropped), separated, True, new_plan.steps,
-                                  new_plan.makespan, gap, planning))
+                                  tuple(int(i) for i in found.dropped), found.separated, True, new_plan.steps,
+                                  new_plan.makespan, gap, found.planning_time_s,
+                                  parked=tuple((float(x), float(y)) for x, y in found.parked)))
             ref = PlanReference(new_plan, t_now, rows, start)
             mode = "track"
             avg_from = replan_at = math.inf
@@ -586,6 +609,8 @@ def _execute_real(problem, plan, params, rng, planner_params, progress) -> SimRe
         problem, world, witness, monitor, times, positions, tracking, reached, final_error, per_robot,
         sim_time=float(times[-1]), wall0=wall0, step_time=step_time, masses=masses, failed=failed,
         disturbances=disturbances, replans=replans, stopped=stopped,
+        targets_filled=_filled(positions[-1], problem.target, float(params.tolerance)),
+        phase_margin_deg=phase_margin(kp, kd, float(params.latency) + 0.5 * clock.period),
     )
 
 
@@ -596,6 +621,16 @@ def _replan_world(problem, fixed, start, targets):
     obstacles = tuple(problem.obstacles) + tuple(Circle((float(x), float(y)), problem.radius) for x, y in fixed)
     return Problem(problem.width, problem.height, obstacles, problem.radius, problem.margin, start, targets,
                    problem.max_speed, problem.max_accel)
+
+
+def _filled(final: np.ndarray, target: np.ndarray, tolerance: float) -> int:
+    """How many targets have a robot within ``tolerance`` (a largest matching of robots to targets)."""
+    from scipy.optimize import linear_sum_assignment
+
+    target = np.asarray(target, float).reshape(-1, 2)
+    far = np.linalg.norm(final[:, None, :] - target[None, :, :], axis=2) > tolerance
+    rows, cols = linear_sum_assignment(far.astype(float))
+    return int((~far[rows, cols]).sum())
 
 
 def _reached(final: np.ndarray, target: np.ndarray, tolerance: float, working: np.ndarray):

@@ -58,6 +58,7 @@ __all__ = [
     "Events",
     "Resistance",
     "Sensor",
+    "phase_margin",
     "real_masses",
     "resistive_forces",
     "streams",
@@ -80,6 +81,22 @@ def streams(rng: np.random.Generator) -> dict[str, np.random.Generator]:
     """
     children = rng.spawn(len(_STREAMS))
     return dict(zip(_STREAMS, children))
+
+
+def phase_margin(kp: float, kd: float, delay: float) -> float:
+    """Phase margin [degrees] of the PD loop around a unit mass with a pure delay.
+
+    The open loop is ``(kd s + kp) e^(-s delay) / s^2``; it crosses unity
+    gain at ``w^2 = (kd^2 + sqrt(kd^4 + 4 kp^2)) / 2``, where its phase is
+    ``-180 deg + atan(kd w / kp) - w delay``.  The closed loop is stable
+    (without saturation) when the margin is positive; below about 30
+    degrees it rings.  A zero-order hold of period ``T`` acts like a delay
+    of ``T / 2``.  ``inf`` without feedback.
+    """
+    if kp <= 0 and kd <= 0:
+        return math.inf
+    w = math.sqrt((kd * kd + math.sqrt(kd**4 + 4.0 * kp * kp)) / 2.0)
+    return math.degrees(math.atan2(kd * w, kp) - w * delay)
 
 
 def real_masses(mass: float, mass_error: float, m: int, rng: np.random.Generator | None) -> np.ndarray:

@@ -22,9 +22,11 @@ exceeds ``recovery.trigger``, or a robot fails, it runs this sequence:
    obstacle (:class:`planner.Circle` of the robot radius at its measured
    position, so a working robot's centre keeps ``2 r + margin`` from it).
    With ``k`` failed robots, ``m - k`` robots fill ``m - k`` targets
-   (:func:`drop_targets` says which ``k`` stay empty).  Where the measured
-   positions are closer than the separation or the clearance, a short
-   separation step (:func:`separation_step`) comes first, checked exactly.
+   (:func:`drop_targets` says which ``k`` stay empty; where a failed robot
+   blocks more targets than that, as many working robots park where they
+   stand, :func:`parking`).  Where the measured positions are closer than
+   the separation or the clearance, a short separation step
+   (:func:`separation_step`) comes first, checked exactly.
 4. **Go on** with the new plan from the replan time; the run ends
    ``settle_time`` after it.  A replan that finds no plan ends the run there,
    robots at rest, and the report says why.
@@ -44,16 +46,19 @@ import numpy as np
 from planner import Circle, NoPlanFound, Plan, PlannerParams, Problem, ProblemError
 from planner import plan as plan_motion
 from planner.geometry import closest_approach
+from planner.problem import check_placement
 
 from .contacts import static_clearances
 
 __all__ = [
     "AVERAGE",
     "SETTLE",
+    "NewPlan",
     "Replan",
     "RecoveryFailed",
     "StopReference",
     "drop_targets",
+    "parking",
     "replan",
     "separation_step",
 ]
@@ -79,7 +84,9 @@ class Replan:
     (after braking and standing still) [s].  reason: what fired it.
     robots: the working robots planned for; failed: the failed robots
     (static discs in the plan); dropped_targets: indices of the targets
-    left empty.  separation_step: whether a separation step came first.
+    left empty; parked: places where working robots park instead, when
+    failed robots block more targets than they leave empty.
+    separation_step: whether a separation step came first.
     found, steps, makespan_s, min_clearance: the new plan (the separation
     step included), or ``found = False`` and ``error``.
     planning_time_s: wall-clock time of planning (not simulated time).
@@ -98,6 +105,7 @@ class Replan:
     min_clearance: float | None
     planning_time_s: float
     error: str = ""
+    parked: tuple[tuple[float, float], ...] = ()
 
     def to_dict(self) -> dict:
         d = {
@@ -107,6 +115,7 @@ class Replan:
             "robots": self.robots,
             "failed": list(self.failed),
             "dropped_targets": list(self.dropped_targets),
+            "parked": [list(p) for p in self.parked],
             "separation_step": self.separation_step,
             "found": self.found,
             "steps": self.steps,
@@ -154,15 +163,17 @@ class StopReference:
 
 
 def drop_targets(targets: np.ndarray, failed: np.ndarray, separation: float) -> tuple[np.ndarray, np.ndarray]:
-    """Which ``k = len(failed)`` targets stay empty: ``(kept, dropped)`` index arrays.
+    """Which targets stay empty when ``k = len(failed)`` robots failed: ``(kept, dropped)``.
 
     A target closer than ``separation`` (``2 r + margin``) to a failed
-    robot is blocked (it cannot be filled) and is always dropped; the other
-    dropped targets are those a minimum-cost assignment of the failed robots
-    to the targets gives them (by distance, blocked targets at cost 0, so
-    every blocked target is among them: a failed robot takes the target it
-    blocks, or else the one nearest it in the assignment).  Raises
-    :class:`RecoveryFailed` when more than ``k`` targets are blocked.
+    robot is blocked (it cannot be filled) and is always dropped.  When
+    fewer than ``k`` are blocked, the others dropped are those a
+    minimum-cost assignment of the failed robots to the targets gives them
+    (by distance, blocked targets at cost 0, so every blocked target is
+    among them): a failed robot takes the target it blocks, or else the one
+    nearest it in the assignment.  When more than ``k`` are blocked, all
+    blocked ones are dropped and ``len(kept) < m - k``: some working robots
+    have to park (:func:`replan`).
     """
     from scipy.optimize import linear_sum_assignment
 
@@ -174,14 +185,38 @@ def drop_targets(targets: np.ndarray, failed: np.ndarray, separation: float) -> 
         return idx, idx[:0]
     d = np.linalg.norm(failed[:, None] - targets[None], axis=2)  # (k, n)
     blocked = (d < separation - 1e-9).any(axis=0)
-    if int(blocked.sum()) > k:
-        raise RecoveryFailed(f"the {k} failed robots block {int(blocked.sum())} targets "
-                             f"({', '.join(str(i) for i in idx[blocked][:10])}); only {k} can stay empty")
+    if int(blocked.sum()) >= k:
+        return idx[~blocked], idx[blocked]
     cost = np.where(blocked[None], 0.0, d)
     _, cols = linear_sum_assignment(cost)
     dropped = np.sort(cols)
     kept = np.setdiff1d(idx, dropped)
     return kept, dropped
+
+
+def parking(start: np.ndarray, targets: np.ndarray, count: int, separation: float) -> np.ndarray:
+    """``count`` places for robots that have no target left: ``(count, 2)``.
+
+    The places are the current positions of the working robots that are
+    at least ``separation`` from every target, farthest from the targets
+    first (a robot parked there is out of the others' way; any robot may
+    end there, the problem being unlabeled).  ``start`` must be separated
+    and clear.  Raises :class:`RecoveryFailed` when there are too few.
+    """
+    start = np.asarray(start, float).reshape(-1, 2)
+    if count <= 0:
+        return np.zeros((0, 2))
+    targets = np.asarray(targets, float).reshape(-1, 2)
+    if len(targets):
+        near = np.linalg.norm(start[:, None] - targets[None], axis=2).min(axis=1)
+    else:
+        near = np.full(len(start), np.inf)
+    ok = np.flatnonzero(near >= separation + 1e-9)
+    if len(ok) < count:
+        raise RecoveryFailed(f"{count} working robots have no target left and only {len(ok)} can park "
+                             f"clear of the other targets")
+    order = ok[np.argsort(-near[ok], kind="stable")]
+    return start[np.sort(order[:count])]
 
 
 def _signed_clearance(problem: Problem, pts: np.ndarray) -> np.ndarray:
@@ -264,50 +299,75 @@ def _step_is_safe(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.all(low >= np.minimum(start, problem.clearance) - tol))
 
 
+@dataclass(frozen=True, eq=False)
+class NewPlan:
+    """What :func:`replan` found.
+
+    plan: moves the working robots (in the order of ``start``), a separation
+    step first when ``separated``.  kept, dropped: indices of ``targets``.
+    parked: ``(p, 2)`` parking places that replace blocked targets.
+    targets: ``(m - k, 2)`` where the working robots go (kept targets,
+    then parking places).  planning_time_s: wall-clock time.
+    """
+
+    plan: Plan
+    kept: np.ndarray
+    dropped: np.ndarray
+    parked: np.ndarray
+    targets: np.ndarray
+    separated: bool
+    planning_time_s: float
+
+
 def replan(base: Problem, start: np.ndarray, failed: np.ndarray, targets: np.ndarray,
-           params: PlannerParams, time_limit: float, rng: np.random.Generator):
+           params: PlannerParams, time_limit: float, rng: np.random.Generator) -> NewPlan:
     """Plan for the working robots from ``start`` to ``m - k`` of ``targets``.
 
     ``base`` gives the world, radius, margin and limits; ``failed`` holds the
-    ``k`` failed robots' positions (static disc obstacles).  Returns
-    ``(plan, kept, dropped, separated, planning_time_s)``: ``plan`` moves the
-    working robots (in the order of ``start``), a separation step first when
-    ``separated``; ``kept``/``dropped`` index ``targets``.  Raises
+    ``k`` failed robots' positions (static disc obstacles).  The steps:
+    drop ``k`` targets (:func:`drop_targets`); separate the start
+    (:func:`separation_step`) where it is closer than the separation or
+    clearance; where failed robots block more than ``k`` targets, park as
+    many working robots as needed (:func:`parking`); plan.  Raises
     :class:`RecoveryFailed` with the reason when there is no way on.
     """
     t0 = _time.perf_counter()
     extra = float(getattr(params, "margin_extra", 0.0) or 0.0)
     obstacles = tuple(base.obstacles) + tuple(Circle((float(x), float(y)), base.radius) for x, y in failed)
-    kept, dropped = drop_targets(targets, failed, 2 * base.radius + base.margin + extra)
-    world = Problem(base.width, base.height, obstacles, base.radius, base.margin + extra,
-                    np.asarray(start, float), np.asarray(targets, float)[kept],
+    sep = 2 * base.radius + base.margin + extra
+    targets = np.asarray(targets, float).reshape(-1, 2)
+    kept, dropped = drop_targets(targets, failed, sep)
+    start = np.asarray(start, float).reshape(-1, 2)
+    world = Problem(base.width, base.height, obstacles, base.radius, base.margin + extra, start, start,
                     base.max_speed, base.max_accel)
-    first = np.asarray(start, float)
+    first = start
     separated = False
     try:
-        world.validate()
+        check_placement(world, start, "start")
     except ProblemError as exc:
-        if not exc.field.startswith("start"):
-            raise RecoveryFailed(f"the targets do not fit around the failed robots: {exc}") from None
-        moved = separation_step(world, first)
+        moved = separation_step(world, start)
         if moved is None:
             raise RecoveryFailed(f"no separation step from the measured positions ({exc})") from None
         separated = True
         first = moved
+    parked = parking(first, targets[kept], len(start) - len(kept), sep)
+    goal = np.concatenate([targets[kept], parked])
+    try:
+        check_placement(world, goal, "target")
+    except ProblemError as exc:
+        raise RecoveryFailed(f"the targets do not fit around the failed robots: {exc}") from None
     # The planner gets the real margin; margin_extra inflates it inside.
-    problem = Problem(base.width, base.height, obstacles, base.radius, base.margin, first,
-                      world.target, base.max_speed, base.max_accel)
+    problem = Problem(base.width, base.height, obstacles, base.radius, base.margin, first, goal,
+                      base.max_speed, base.max_accel)
     settings = replace(params, g=None, q=None, time_limit=float(time_limit))
     try:
         result, _ = plan_motion(problem, settings, rng)
-    except NoPlanFound as exc:
-        raise RecoveryFailed(f"no plan: {exc}") from None
-    except ProblemError as exc:
+    except (NoPlanFound, ProblemError) as exc:
         raise RecoveryFailed(f"no plan: {exc}") from None
     if separated:
-        sep = Plan.from_waypoints(np.stack([np.asarray(start, float), first]), base.radius, base.margin,
-                                  base.max_speed, base.max_accel)
-        result = Plan(base.radius, base.margin, np.concatenate([sep.durations, result.durations]),
-                      np.concatenate([np.asarray(start, float)[None], result.waypoints]),
+        step = Plan.from_waypoints(np.stack([start, first]), base.radius, base.margin,
+                                   base.max_speed, base.max_accel)
+        result = Plan(base.radius, base.margin, np.concatenate([step.durations, result.durations]),
+                      np.concatenate([start[None], result.waypoints]),
                       base.max_speed, base.max_accel, result.stats)
-    return result, kept, dropped, separated, _time.perf_counter() - t0
+    return NewPlan(result, kept, dropped, parked, goal, separated, _time.perf_counter() - t0)

@@ -284,3 +284,34 @@ def test_control_rate_holds_the_force_between_updates():
     assert np.ptp(firsts) > 1e-3  # and it changes from one update to the next
     di = _second_difference(ideal)
     assert all(np.ptp(di[per * j : per * j + per - 1]) > 1e-9 for j in range(1, 5))  # every step
+
+
+def test_tracking_error_is_measured_while_settling_too():
+    problem, plan = _world([[[2.0, 10.0]], [[6.0, 10.0]]])
+    t_kick = plan.makespan + 0.5
+    params = SimParams(settle_time=2.0, disturbances=(Impulse(0, t_kick, (0.0, 1.0)),))
+    report = execute(problem, plan, params, np.random.default_rng(0))
+    assert report.max_tracking_error_time > plan.makespan
+    assert report.max_tracking_error_time == pytest.approx(t_kick, abs=0.1)
+    assert report.max_tracking_error > 0.01
+    assert report.tracking_error.shape == (len(report.times), 1)
+    # Negative control: the same plan without the kick tracks to within 1e-3 throughout.
+    calm = execute(problem, plan, SimParams(settle_time=2.0))
+    assert calm.max_tracking_error < 1e-3
+
+
+def test_phase_margin_flags_gains_too_high_for_the_latency():
+    from sim.realism import phase_margin
+
+    # kp = 400, kd = 40 cross over at 41 rad/s: 40 ms of latency and 10 ms of
+    # hold cost 118 degrees, more than the 76 the derivative gives.
+    assert phase_margin(400.0, 40.0, 0.05) == pytest.approx(-41.6, abs=0.1)
+    assert phase_margin(50.0, 14.0, 0.05) == pytest.approx(34.8, abs=0.1)
+    problem, plan = _world([[[2.0, 10.0]], [[6.0, 10.0]]])
+    shaky = execute(problem, plan, SimParams(latency=0.04, control_rate=50.0), np.random.default_rng(0))
+    assert shaky.phase_margin_deg < 0 and "unstable" in shaky.verdict
+    assert shaky.max_tracking_error > 0.01  # it rings
+    steady = execute(problem, plan, SimParams(latency=0.04, control_rate=50.0, kp=50.0, kd=14.0),
+                     np.random.default_rng(0))
+    assert steady.phase_margin_deg > 30 and "unstable" not in steady.verdict
+    assert steady.ok

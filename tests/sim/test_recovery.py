@@ -13,7 +13,7 @@ from planner import Circle, PlannerParams, Problem, plan
 from planner.plan import Plan
 from sim.execute import execute
 from sim.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
-from sim.recovery import RecoveryFailed, StopReference, drop_targets, separation_step
+from sim.recovery import RecoveryFailed, StopReference, drop_targets, parking, separation_step
 
 R = 0.5
 MARGIN = 0.1
@@ -53,12 +53,21 @@ def test_drop_targets_blocked_first_then_nearest_by_assignment():
     # Nothing blocked: the assignment of the failed robot to its nearest target.
     kept, dropped = drop_targets(targets, np.array([[8.0, 7.0]]), 1.1)
     assert dropped.tolist() == [2]
-    # One failed robot between two targets blocks both: no way to fill m - 1.
+    # One failed robot between two targets blocks both: both are dropped.
     close = np.array([[4.0, 5.0], [5.0, 5.0], [9.0, 9.0]])
-    with pytest.raises(RecoveryFailed, match="block 2 targets"):
-        drop_targets(close, np.array([[4.5, 5.0]]), 1.1)
+    kept, dropped = drop_targets(close, np.array([[4.5, 5.0]]), 1.1)
+    assert dropped.tolist() == [0, 1] and kept.tolist() == [2]
     kept, dropped = drop_targets(targets, np.zeros((0, 2)), 1.1)
     assert kept.tolist() == [0, 1, 2, 3] and dropped.tolist() == []
+
+
+def test_parking_places_are_robots_clear_of_the_targets_farthest_first():
+    start = np.array([[1.0, 1.0], [5.0, 5.0], [9.0, 1.0], [5.0, 9.0]])
+    targets = np.array([[5.0, 5.5], [5.0, 8.0]])
+    assert parking(start, targets, 2, 1.1).tolist() == [[1.0, 1.0], [9.0, 1.0]]
+    assert parking(start, targets, 0, 1.1).shape == (0, 2)
+    with pytest.raises(RecoveryFailed, match="only 2 can park"):
+        parking(start, targets, 3, 1.1)
 
 
 def test_separation_step_separates_and_is_checked_exactly():
@@ -169,19 +178,47 @@ def test_a_failed_robot_causes_a_contact_without_recovery_and_none_with_it():
     assert "robots 0 failed" in d["verdict"] and "1 replans" in d["verdict"]
 
 
-def test_a_replan_that_cannot_go_on_ends_the_run_with_the_reason():
-    # Robot 0 fails at (5, 5), between two targets 1 away: it blocks both, and
-    # m - 1 targets cannot be filled.
+def _blocking_case():
+    """Robot 0 fails at (5, 5), between two targets 1 away: it blocks both."""
     w = [[[5.0, 1.5], [1.0, 5.0], [9.0, 5.0]], [[5.0, 8.5], [1.0, 5.0], [9.0, 5.0]],
          [[5.0, 8.5], [4.0, 5.0], [6.0, 5.0]]]
-    problem, p = _setup(w)
+    return _setup(w)
+
+
+def test_a_robot_parks_when_a_failed_one_blocks_two_targets():
+    problem, p = _blocking_case()
     params = SimParams(failures=(Failure(0, p.durations[0] / 2),), recovery=RECOVER)
     report = execute(problem, p, params, np.random.default_rng(0), planner_params=PlannerParams())
-    assert report.stopped and "block" in report.stopped
-    assert not report.ok and not report.reached
+    rp = report.replans[0]
+    assert rp.found and rp.dropped_targets == (1, 2) and len(rp.parked) == 1
+    assert report.contacts == () and report.ok, report.verdict
+    assert report.targets_filled == 1  # only (5, 8.5): the others are blocked
+    assert "1 of 3 targets filled" in report.verdict
+
+
+def test_a_replan_that_cannot_go_on_ends_the_run_with_the_reason():
+    # A wall with a door 2.6 wide; robot 0 fails in the door, the others wait on the left.
+    from planner import Polygon
+
+    wall = (Polygon(np.array([[9.0, 0.0], [11.0, 0.0], [11.0, 8.7], [9.0, 8.7]])),
+            Polygon(np.array([[9.0, 11.3], [11.0, 11.3], [11.0, 20.0], [9.0, 20.0]])))
+    w = [[[3.0, 10.0], [3.0, 5.0], [3.0, 15.0]], [[17.0, 10.0], [3.0, 5.0], [3.0, 15.0]],
+         [[17.0, 10.0], [17.0, 5.0], [17.0, 15.0]]]
+    w = np.asarray(w)
+    problem = Problem(20.0, 20.0, wall, R, MARGIN, w[0], w[-1])
+    p = Plan.from_waypoints(w, R, MARGIN, problem.max_speed, problem.max_accel)
+    fails = Failure(0, p.durations[0] / 2)  # at x = 10, in the door
+    params = SimParams(failures=(fails,), recovery=Recovery(replan=True, time_limit=1.0))
+    report = execute(problem, p, params, np.random.default_rng(0), planner_params=PlannerParams())
+    assert report.stopped and "no plan" in report.stopped, report.verdict
+    assert not report.ok and not report.reached and report.contacts == ()
     assert report.replans[-1].found is False and report.replans[-1].error
-    assert report.sim_time_s < p.makespan + SimParams().settle_time
+    assert report.sim_time_s < p.makespan
     assert report.to_dict()["stopped"].startswith("replan at t =")
+    assert report.verdict.startswith("stopped: replan at t =")
+    # Negative control: without recovery the others drive into the failed robot.
+    blind = execute(problem, p, SimParams(failures=(fails,)), np.random.default_rng(0))
+    assert blind.contacts
 
 
 def _random_case(seed: int):
