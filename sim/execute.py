@@ -555,7 +555,7 @@ def _execute_real(problem, plan, params, rng, planner_params, progress) -> SimRe
                 worst = int(np.nanargmax(np.where(working, err, -np.inf)))
                 if err[worst] > rec.trigger:
                     reason = f"tracking error {err[worst]:.3g} of robot {worst} > trigger {rec.trigger:g}"
-            if reason:
+            if reason and working.any():
                 mode = "brake"
                 trigger_time, trigger_reason = t_now, reason
                 stop = StopReference(last_meas_t, last_meas[:, :2], last_meas[:, 2:], 0.5 * a_lim)

@@ -120,7 +120,10 @@ def run_scenario(
         f"{stats.min_clearance:.4f} (margin {problem.margin:g}){'' if valid else '  BELOW THE MARGIN'}")
 
     report["plan"]["margin"] = problem.margin
-    report["plan"]["margin_extra"] = scenario.planner.margin_extra
+    if loaded is None:
+        report["plan"]["margin_extra"] = scenario.planner.margin_extra
+    else:  # what the plan file says it was planned with
+        report["plan"]["margin_extra"] = (loaded.stats.extra.get("margin_extra", 0.0) if loaded.stats else 0.0)
 
     bar = ProgressBar("  physics", enabled=progress)
     sim = execute(problem, result, scenario.sim, rng, planner_params=scenario.planner,

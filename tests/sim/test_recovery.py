@@ -273,3 +273,13 @@ def test_recovery_never_adds_a_contact_small_batch():
 @pytest.mark.slow
 def test_recovery_never_adds_a_contact_batch_of_20():
     _check_batch(_batch(range(20)))
+
+
+def test_when_every_robot_fails_there_is_nothing_to_replan():
+    problem, p = _failure_case()
+    params = SimParams(failures=(Failure(0, 1.0), Failure(1, 1.0)), recovery=RECOVER)
+    report = execute(problem, p, params, np.random.default_rng(0), planner_params=PlannerParams())
+    assert report.failed == (0, 1) and report.replans == () and not report.stopped
+    assert report.contacts == () and report.targets_filled == 0
+    assert np.all(np.isnan(report.tracking_error[-1]))
+    assert report.max_tracking_error < 0.01  # before the failures
