@@ -19,6 +19,10 @@ class PlannerParams:
     extra: free vertices pumped into the start and target configurations
        (``None``: ceil(m / 4), at least 2).
     concurrent: schedule non-interfering moves at the same time.
+    margin_extra: plan with the margin inflated by this much [units, >= 0];
+       the plan is still validated against the problem's own margin, so a
+       robot that strays up to about ``margin_extra / 2`` from its path
+       keeps the real margin.
     """
 
     g: int | None = None
@@ -27,6 +31,7 @@ class PlannerParams:
     n: int | None = None
     extra: int | None = None
     concurrent: bool = True
+    margin_extra: float = 0.0
 
     @property
     def auto(self) -> bool:

@@ -30,6 +30,8 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     ``rng`` is the run's one generator (default: seeded with 0).
     """
     params = params or PlannerParams()
+    if params.margin_extra:
+        return _plan_inflated(problem, params, rng)
     rng = rng if rng is not None else np.random.default_rng(0)
     problem.validate()
     t0 = time.perf_counter()
@@ -88,6 +90,36 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     stats.makespan_lower_bound_s, stats.path_length_lower_bound = lower_bounds(problem)
     stats.planning_time_s = time.perf_counter() - t0
     result = Plan(result.radius, result.margin, result.durations, result.waypoints,
+                  result.max_speed, result.max_accel, stats)
+    return result, stats
+
+
+def _plan_inflated(problem: Problem, params: PlannerParams, rng):
+    """:func:`plan` with ``params.margin_extra``: plan with the margin inflated,
+    validate against the real one, and record both in the stats
+    (``margin``, ``margin_extra``; ``min_clearance`` is the exact gap)."""
+    from dataclasses import replace
+
+    from .problem import ProblemError
+
+    extra = float(params.margin_extra)
+    if not (np.isfinite(extra) and extra >= 0):
+        raise ProblemError("planner.margin_extra", f"must be a number >= 0, got {params.margin_extra!r}")
+    problem.validate()
+    inflated = replace(problem, margin=problem.margin + extra)
+    try:
+        inflated.validate()
+    except ProblemError as exc:
+        raise ProblemError("planner.margin_extra",
+                           f"with margin + margin_extra = {inflated.margin:g}, {exc.field}: {exc.reason}") from None
+    try:
+        result, stats = plan(inflated, replace(params, margin_extra=0.0), rng)
+    except NoPlanFound as exc:
+        exc.stats.extra.update(margin=problem.margin, margin_extra=extra)
+        raise
+    check_plan(problem, result)  # the real margin (the inflated one already held)
+    stats.extra.update(margin=problem.margin, margin_extra=extra)
+    result = Plan(result.radius, problem.margin, result.durations, result.waypoints,
                   result.max_speed, result.max_accel, stats)
     return result, stats
 

@@ -16,7 +16,10 @@
   polygons whose bounding box is farther than the nearest wall or circle.  It keeps the
   smallest gap and where it occurred, and opens one :class:`Contact` per
   pair and touching episode (the first sample with a gap ``< 0``; the depth
-  is the largest overlap during the episode).
+  is the largest overlap during the episode).  It also keeps the smallest
+  gap of every sample (:attr:`GapMonitor.series`), exact up to a cap of one
+  robot diameter (:data:`SERIES_CAP` radii): larger gaps are recorded as
+  the cap.
 
 A run is clean only when neither witness saw anything.
 """
@@ -39,6 +42,7 @@ __all__ = [
     "Contact",
     "GapMonitor",
     "PymunkWitness",
+    "SERIES_CAP",
     "static_clearances",
 ]
 
@@ -51,6 +55,11 @@ ROBOT_WALL = "robot-wall"
 # nearest neighbours.
 _VERLET_SPAN = 16
 _PAIRS_PER_ROBOT = 40
+
+SERIES_CAP = 2.0
+"""Per-sample smallest gaps above ``SERIES_CAP * radius`` (one robot diameter) are
+recorded as that cap: nothing that far apart is near a contact, and the cap
+bounds the pairs the monitor measures."""
 
 
 @dataclass(frozen=True)
@@ -182,10 +191,11 @@ def static_clearances(env, points: np.ndarray, n_obstacles: int, below: float | 
     of a disc.  Where a centre is outside every obstacle, the row minimum
     equals :meth:`planner.geometry.Environment.point_clearance`.
 
-    With ``below`` given, a polygon entry is exact only where it is less
-    than ``below``; elsewhere it may be any lower bound that is at least
-    ``below`` (the distance to the polygon's bounding box), which is all a
-    search for the minimum or for overlaps needs.
+    With ``below`` given (a number, or one per point), a polygon entry is
+    exact only where it is less than ``below``; elsewhere it may be any
+    lower bound that is at least ``below`` (the distance to the polygon's
+    bounding box), which is all a search for the minimum or for overlaps
+    needs.
     """
     pts = np.asarray(points, float).reshape(-1, 2)
     out = np.empty((len(pts), n_obstacles + 1))
@@ -222,6 +232,7 @@ class GapMonitor:
 
     def __init__(self, problem):
         self.radius = float(problem.radius)
+        self.cap = SERIES_CAP * self.radius
         self.env = problem.env
         self.n_obstacles = len(problem.obstacles)
         self.min_gap = float("inf")
@@ -230,37 +241,48 @@ class GapMonitor:
         self.min_pair = (-1, -1)
         self._records: list[list] = []
         self._active: dict[tuple, list] = {}
-        
+        self._series: list[np.ndarray] = []
+
     def contacts(self) -> list[Contact]:
         return _contacts(self._records, "monitor")
+
+    @property
+    def series(self) -> np.ndarray:
+        """``(T,)`` smallest gap of every sample observed so far [units], capped at :attr:`cap`."""
+        return np.concatenate(self._series) if self._series else np.zeros(0)
 
     # -- robot pairs --------------------------------------------------------------
     def _robot_pairs(self, pos: np.ndarray, bound: float):
         """Robot-robot gaps of the samples ``pos`` ``(C, m, 2)``.
 
-        Returns the smallest gap with its ``(sample, i, j)`` and the touching
-        ``(sample, i, j, gap)`` rows.  The smallest gap is exact whenever it
-        is below ``bound`` (otherwise it is only known to be at least
-        ``bound``, and ``inf`` may be returned).
+        Returns the smallest gap with its ``(sample, i, j)``, the touching
+        ``(sample, i, j, gap)`` rows and the ``(C,)`` smallest gap of each
+        sample.  The smallest gap is exact whenever it is below ``bound``
+        (otherwise it is only known to be at least ``bound``, and ``inf``
+        may be returned); a sample's smallest gap is exact whenever it is
+        below :attr:`cap` (otherwise it is at least the cap).
         """
         best, where, touching = np.inf, None, []
+        per_sample = np.full(len(pos), np.inf)
         if pos.shape[1] < 2:
-            return best, where, touching
+            return best, where, touching, per_sample
         for s0 in range(0, len(pos), _VERLET_SPAN):
-            g, w, t = self._pairs_block(pos[s0 : s0 + _VERLET_SPAN], min(bound, best))
+            g, w, t, ps = self._pairs_block(pos[s0 : s0 + _VERLET_SPAN], min(bound, best))
             if g < best:
                 best, where = g, (s0 + w[0], w[1], w[2])
             touching.extend((s0 + s, i, j, gap) for s, i, j, gap in t)
-        return best, where, touching
+            per_sample[s0 : s0 + len(ps)] = ps
+        return best, where, touching, per_sample
 
     def _pairs_block(self, pos: np.ndarray, bound: float):
         """:meth:`_robot_pairs` for a few consecutive samples.
 
         Candidate pairs (a Verlet list): no robot moves more than ``D``
         from its position in the first sample, so a pair farther apart than
-        ``2 r + 2 D + max(bound, 0)`` there keeps a gap above
-        ``max(bound, 0)`` in every sample: it neither touches nor lowers the
-        minimum.  Only the closer pairs are measured, all samples at once.
+        ``2 r + 2 D + max(bound, cap, 0)`` there keeps a gap above
+        ``max(bound, cap, 0)`` in every sample: it neither touches nor
+        lowers the minimum nor any sample's minimum below the cap.  Only the
+        closer pairs are measured, all samples at once.
         """
         from scipy.spatial import cKDTree
 
@@ -268,9 +290,10 @@ class GapMonitor:
         two_r = 2.0 * self.radius
         touching: list[tuple[int, int, int, float]] = []
         best, where = np.inf, None
+        per_sample = np.full(c, np.inf)
         move = pos - pos[:1]
         reach = float(np.sqrt(np.einsum("cmk,cmk->cm", move, move).max()))
-        cutoff = two_r + 2.0 * reach + max(bound, 0.0) + 1e-9
+        cutoff = two_r + 2.0 * reach + max(bound, self.cap, 0.0) + 1e-9
         pairs = cKDTree(pos[0]).query_pairs(cutoff, output_type="ndarray")
         if len(pairs) > _PAIRS_PER_ROBOT * m:
             # Too many candidates (sparse robots, large bound): exact nearest
@@ -280,6 +303,7 @@ class GapMonitor:
                 dd, jj = tree.query(pos[s], k=2)
                 i = int(np.argmin(dd[:, 1]))
                 g = float(dd[i, 1]) - two_r
+                per_sample[s] = g
                 if g < best:
                     j = int(jj[i, 1])
                     best, where = g, (s, min(i, j), max(i, j))
@@ -288,12 +312,13 @@ class GapMonitor:
                         gap = float(np.linalg.norm(pos[s, i] - pos[s, j])) - two_r
                         if gap < 0.0:
                             touching.append((s, int(i), int(j), gap))
-            return best, where, touching
+            return best, where, touching, per_sample
         if len(pairs) == 0:
-            return best, where, touching
+            return best, where, touching, per_sample
         pi, pj = pairs[:, 0], pairs[:, 1]
         diff = pos[:, pi] - pos[:, pj]
         d2 = np.einsum("cpk,cpk->cp", diff, diff)
+        per_sample = np.sqrt(d2.min(axis=1)) - two_r
         s, q = divmod(int(np.argmin(d2)), d2.shape[1])
         g = math.sqrt(d2[s, q]) - two_r
         i, j = int(pi[q]), int(pj[q])
@@ -304,7 +329,7 @@ class GapMonitor:
                 if gap < 0.0:
                     i, j = int(pi[q]), int(pj[q])
                     touching.append((int(s), min(i, j), max(i, j), gap))
-        return best, where, touching
+        return best, where, touching, per_sample
 
     # -- samples --------------------------------------------------------------------
     def observe(self, times: np.ndarray, positions: np.ndarray) -> None:
@@ -319,15 +344,19 @@ class GapMonitor:
 
         pts = pos.reshape(-1, 2)
         # Polygon entries need to be exact only where they could be the
-        # smallest gap of the chunk or an overlap: below what the walls and
-        # circles already give (never below the radius, i.e. a zero gap).
+        # smallest gap of the chunk, or of their sample up to the cap, or an
+        # overlap: below what the walls and circles already give (never
+        # below the radius, i.e. a zero gap).
         env = self.env
-        cheap = float(env.wall_clearance(pts).min())
+        cheap_pt = env.wall_clearance(pts)
         if len(env.circle_radii):
             d = np.sqrt(((pts[:, None, :] - env.circle_centers[None]) ** 2).sum(-1))
-            cheap = min(cheap, float((d - env.circle_radii[None]).min()))
-        below = max(cheap, r) + 1e-9
-        gaps = static_clearances(env, pts, self.n_obstacles, below=below) - r
+            cheap_pt = np.minimum(cheap_pt, (d - env.circle_radii[None]).min(axis=1))
+        cheap_s = cheap_pt.reshape(c, m).min(axis=1)
+        cheap = float(cheap_s.min())
+        below_s = np.maximum(max(cheap, r), np.minimum(cheap_s, self.cap + r)) + 1e-9
+        gaps = static_clearances(env, pts, self.n_obstacles, below=np.repeat(below_s, m)) - r
+        sample_min = np.minimum(gaps.reshape(c, -1).min(axis=1), self.cap)
         flat = int(np.argmin(gaps))
         row, col = divmod(flat, gaps.shape[1])
         g = float(gaps[row, col])
@@ -343,11 +372,12 @@ class GapMonitor:
                 kind = ROBOT_OBSTACLE if ob >= 0 else ROBOT_WALL
                 events.append((s, kind, i, ob, float(gaps[row, col])))
 
-        best, where, touching = self._robot_pairs(pos, self.min_gap)
+        best, where, touching, pair_min = self._robot_pairs(pos, self.min_gap)
         if best < self.min_gap:
             s, i, j = where
             self._set_min(best, times[s], ROBOT_ROBOT, (i, j))
         events.extend((s, ROBOT_ROBOT, i, j, g) for s, i, j, g in touching)
+        self._series.append(np.minimum(sample_min, pair_min))
 
         if events or self._active:
             self._episodes(times, events)

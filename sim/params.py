@@ -4,20 +4,105 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["RenderParams", "SimParams"]
+__all__ = [
+    "Failure",
+    "Impulse",
+    "Noise",
+    "Pushes",
+    "Recovery",
+    "RenderParams",
+    "SimParams",
+]
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Standard deviation of the measured state, per coordinate and per controller update.
+
+    position: [units], velocity: [units/s].  The noise is added to what the
+    controller measures, never to the bodies.
+    """
+
+    position: float = 0.0
+    velocity: float = 0.0
+
+
+@dataclass(frozen=True)
+class Impulse:
+    """A scheduled impulse: ``impulse`` [N s] given to ``robot`` at ``time`` [s]."""
+
+    robot: int
+    time: float
+    impulse: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Pushes:
+    """Random impulses: a Poisson process of ``rate`` pushes per robot per second,
+    each of magnitude ``impulse`` [N s] in a uniformly random direction."""
+
+    rate: float = 0.0
+    impulse: float = 0.0
+
+
+@dataclass(frozen=True)
+class Failure:
+    """At ``time`` [s] ``robot`` stops actuating and brakes to rest; it stays a passive body."""
+
+    robot: int
+    time: float
+
+
+@dataclass(frozen=True)
+class Recovery:
+    """Online recovery (:mod:`sim.recovery`).
+
+    replan: when any robot's tracking error exceeds ``trigger`` [units], or a
+        robot fails, every robot brakes to rest and the planner plans again
+        from the measured positions.
+    time_limit: planning time allowed for each replan [s].
+    max_replans: the most replans of one run; later triggers are ignored.
+    """
+
+    replan: bool = False
+    trigger: float = 0.05
+    time_limit: float = 10.0
+    max_replans: int = 10
 
 
 @dataclass(frozen=True)
 class SimParams:
     """PD-controlled execution in pymunk.  Units: s, workspace units, mass units.
 
-    mass: body mass of each robot.
-    kp, kd: PD gains per unit mass ([1/s^2], [1/s]); the force is
-        ``mass * (kp * e + kd * de) + mass * a_ref``.
+    A workspace unit counts as one metre and a mass unit as one kilogram
+    wherever a force is named in newtons: a force of 1 N accelerates a mass
+    of 1 by 1 unit/s^2.
+
+    mass: the model's body mass of each robot.
+    kp, kd: PD gains per unit mass ([1/s^2], [1/s]); the commanded force is
+        ``mass * (kp * e + kd * de + a_ref)``, saturated at ``force_limit``.
     dt: control step [s]; substeps: physics steps per control step.
-    force_limit: maximum force magnitude per unit mass [units/s^2].
+    force_limit: largest actuator force of one robot [N]; with the default
+        mass 1 it equals the largest commanded acceleration [units/s^2].
     settle_time: time simulated after the plan ends [s].
     tolerance: distance from a target that counts as reached [units].
+
+    Realistic execution (every one off by default; see :mod:`sim.realism`):
+
+    control_rate: controller updates per second [Hz], with a zero-order hold
+        between them; ``None`` updates once per control step ``dt``.
+    latency: time between measuring the state and applying the force
+        computed from it [s].
+    noise: measurement noise (:class:`Noise`).
+    mass_error: each body's real mass is ``(1 + u) * mass`` with ``u`` drawn
+        from ``U(-mass_error, mass_error)``; the controller keeps ``mass``.
+    friction: planar Coulomb friction coefficient against the floor: a force
+        of magnitude ``friction * m * g``, ``g = 9.81`` units/s^2, opposing
+        the velocity.
+    disturbances: scheduled impulses (:class:`Impulse`).
+    pushes: random impulses (:class:`Pushes`).
+    failures: robots that stop actuating (:class:`Failure`).
+    recovery: online recovery (:class:`Recovery`).
     """
 
     mass: float = 1.0
@@ -28,6 +113,31 @@ class SimParams:
     force_limit: float = 200.0
     settle_time: float = 2.0
     tolerance: float = 0.05
+    control_rate: float | None = None
+    latency: float = 0.0
+    noise: Noise = Noise()
+    mass_error: float = 0.0
+    friction: float = 0.0
+    disturbances: tuple[Impulse, ...] = ()
+    pushes: Pushes = Pushes()
+    failures: tuple[Failure, ...] = ()
+    recovery: Recovery = Recovery()
+
+    @property
+    def realistic(self) -> bool:
+        """Whether any realism knob or recovery is on (else the ideal robots of the plain loop)."""
+        return bool(
+            self.control_rate
+            or self.latency > 0
+            or self.noise.position > 0
+            or self.noise.velocity > 0
+            or self.mass_error > 0
+            or self.friction > 0
+            or self.disturbances
+            or (self.pushes.rate > 0 and self.pushes.impulse > 0)
+            or self.failures
+            or self.recovery.replan
+        )
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from .media import atomic_path, has_mp4, write_video
 from .progress import ProgressBar
 from .render import render_frames
 from .scenario import Scenario, build_problem, read_scenario
+from .series import write_series
 
 __all__ = ["InputError", "RunResult", "plan_summary", "run_scenario", "sim_summary"]
 
@@ -118,14 +119,25 @@ def run_scenario(
     say(f"  plan: {stats.steps} steps, makespan {stats.makespan_s:.1f} s, min clearance "
         f"{stats.min_clearance:.4f} (margin {problem.margin:g}){'' if valid else '  BELOW THE MARGIN'}")
 
+    report["plan"]["margin"] = problem.margin
+    if loaded is None:
+        report["plan"]["margin_extra"] = scenario.planner.margin_extra
+    else:  # what the plan file says it was planned with
+        report["plan"]["margin_extra"] = (loaded.stats.extra.get("margin_extra", 0.0) if loaded.stats else 0.0)
+
     bar = ProgressBar("  physics", enabled=progress)
-    sim = execute(problem, result, scenario.sim,
+    sim = execute(problem, result, scenario.sim, rng, planner_params=scenario.planner,
                   progress=lambda f: bar(f, f"of {result.makespan + scenario.sim.settle_time:.0f} s"))
     bar.close()
     report["sim"] = sim_summary(sim)
+    series = out_dir / f"{name}-series.npz"
+    with atomic_path(series) as tmp:
+        write_series(tmp, sim)
+    report["sim"]["series_file"] = series.name
     say(f"  physics: {len(sim.contacts)} contacts, min clearance {sim.min_clearance:.4f}, "
         f"tracking error {sim.max_tracking_error:.2g}, reached {'yes' if sim.reached else 'no'}, "
         f"{sim.sim_time_s:.1f} s simulated in {sim.wall_time_s:.1f} s")
+    say(f"  physics verdict: {sim.verdict}")
 
     media: list[Path] = []
     if render and "mp4" in scenario.render.formats and not has_mp4():

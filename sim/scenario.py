@@ -24,7 +24,7 @@ from planner.geometry import Environment, segment_segment_distance
 from planner.params import PlannerParams
 from planner.problem import Circle, Polygon, Problem, ProblemError, check_placement
 
-from .params import RenderParams, SimParams
+from .params import Failure, Impulse, Noise, Pushes, Recovery, RenderParams, SimParams
 
 __all__ = [
     "FormationSpec",
@@ -286,7 +286,7 @@ def read_scenario(path: str | Path) -> Scenario:
         start=start,
         target=target,
         planner=_read_planner(r, doc.get("planner")),
-        sim=_read_sim(r, doc.get("sim")),
+        sim=_read_sim(r, doc.get("sim"), count),
         render=_read_render(r, doc.get("render")),
         paper=_read_paper(r, doc.get("paper")),
     )
@@ -442,21 +442,116 @@ def _read_planner(r: _Reader, value) -> PlannerParams:
         n=r.int_or_auto(v.get("n", "auto"), "planner.n", ge=2),
         extra=r.int_or_auto(v.get("extra", "auto"), "planner.extra", ge=0),
         concurrent=r.boolean(v.get("concurrent", d.concurrent), "planner.concurrent"),
+        margin_extra=r.number(v.get("margin_extra", d.margin_extra), "planner.margin_extra", ge=0, le=100),
     )
 
 
-def _read_sim(r: _Reader, value) -> SimParams:
+def _read_sim(r: _Reader, value, count: int) -> SimParams:
     v = r.mapping(value, "sim", tuple(f.name for f in fields(SimParams)))
     d = SimParams()
+    rate = v.get("control_rate", d.control_rate)
+    rate = None if rate is None or (rate == 0 and not isinstance(rate, bool)) else rate
     return SimParams(
         mass=r.number(v.get("mass", d.mass), "sim.mass", gt=0),
         kp=r.number(v.get("kp", d.kp), "sim.kp", gt=0),
         kd=r.number(v.get("kd", d.kd), "sim.kd", ge=0),
         dt=r.number(v.get("dt", d.dt), "sim.dt", gt=0, le=0.1),
         substeps=r.integer(v.get("substeps", d.substeps), "sim.substeps", ge=1),
-        force_limit=r.number(v.get("force_limit", d.force_limit), "sim.force_limit", gt=0),
+        force_limit=r.number(v.get("force_limit", d.force_limit), "sim.force_limit", gt=0, le=1e6),
         settle_time=r.number(v.get("settle_time", d.settle_time), "sim.settle_time", ge=0),
         tolerance=r.number(v.get("tolerance", d.tolerance), "sim.tolerance", gt=0),
+        control_rate=None if rate is None else r.number(rate, "sim.control_rate", ge=1, le=10000),
+        latency=r.number(v.get("latency", d.latency), "sim.latency", ge=0, le=1),
+        noise=_read_noise(r, v.get("noise")),
+        mass_error=r.number(v.get("mass_error", d.mass_error), "sim.mass_error", ge=0, le=0.9),
+        friction=r.number(v.get("friction", d.friction), "sim.friction", ge=0, le=10),
+        disturbances=_read_impulses(r, v.get("disturbances"), count),
+        pushes=_read_pushes(r, v.get("pushes")),
+        failures=_read_failures(r, v.get("failures"), count),
+        recovery=_read_recovery(r, v.get("recovery")),
+    )
+
+
+_MAX_EVENTS = 10_000  # scheduled disturbances or failures in one scenario
+_MAX_TIME = 1e5  # [s] latest time of a scheduled event
+
+
+def _read_noise(r: _Reader, value) -> Noise:
+    v = r.mapping(value, "sim.noise", ("position", "velocity"))
+    return Noise(
+        position=r.number(v.get("position", 0.0), "sim.noise.position", ge=0, le=10),
+        velocity=r.number(v.get("velocity", 0.0), "sim.noise.velocity", ge=0, le=10),
+    )
+
+
+def _event_list(r: _Reader, value, field: str) -> list:
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        r.fail(field, f"must be a list, got {_kind(value)}")
+    if len(value) > _MAX_EVENTS:
+        r.fail(field, f"has {len(value)} entries, at most {_MAX_EVENTS} allowed")
+    return value
+
+
+def _robot(r: _Reader, value, field: str, count: int) -> int:
+    i = r.integer(value, field, ge=0)
+    if i >= count:
+        r.fail(field, f"must be a robot index below {count} (robots.count), got {i}")
+    return i
+
+
+def _read_impulses(r: _Reader, value, count: int) -> tuple[Impulse, ...]:
+    out = []
+    for k, item in enumerate(_event_list(r, value, "sim.disturbances")):
+        f = f"sim.disturbances[{k}]"
+        e = r.mapping(item, f, ("robot", "time", "impulse"))
+        for key in ("robot", "time", "impulse"):
+            if key not in e:
+                r.fail(f"{f}.{key}", "is required")
+        imp = r.pair(e["impulse"], f"{f}.impulse")
+        if max(abs(imp[0]), abs(imp[1])) > 1e4:
+            r.fail(f"{f}.impulse", f"components must be within [-1e4, 1e4] N s, got [{imp[0]:g}, {imp[1]:g}]")
+        out.append(Impulse(_robot(r, e["robot"], f"{f}.robot", count),
+                           r.number(e["time"], f"{f}.time", ge=0, le=_MAX_TIME), imp))
+    return tuple(out)
+
+
+def _read_pushes(r: _Reader, value) -> Pushes:
+    v = r.mapping(value, "sim.pushes", ("rate", "impulse"))
+    return Pushes(
+        rate=r.number(v.get("rate", 0.0), "sim.pushes.rate", ge=0, le=100),
+        impulse=r.number(v.get("impulse", 0.0), "sim.pushes.impulse", ge=0, le=1e4),
+    )
+
+
+def _read_failures(r: _Reader, value, count: int) -> tuple[Failure, ...]:
+    out, seen = [], set()
+    for k, item in enumerate(_event_list(r, value, "sim.failures")):
+        f = f"sim.failures[{k}]"
+        e = r.mapping(item, f, ("robot", "time"))
+        for key in ("robot", "time"):
+            if key not in e:
+                r.fail(f"{f}.{key}", "is required")
+        robot = _robot(r, e["robot"], f"{f}.robot", count)
+        if robot in seen:
+            r.fail(f"{f}.robot", f"robot {robot} already fails earlier in the list")
+        seen.add(robot)
+        out.append(Failure(robot, r.number(e["time"], f"{f}.time", ge=0, le=_MAX_TIME)))
+    return tuple(out)
+
+
+def _read_recovery(r: _Reader, value) -> Recovery:
+    v = r.mapping(value, "sim.recovery", ("replan", "trigger", "time_limit", "max_replans"))
+    d = Recovery()
+    max_replans = r.integer(v.get("max_replans", d.max_replans), "sim.recovery.max_replans", ge=1)
+    if max_replans > 100:
+        r.fail("sim.recovery.max_replans", f"must be <= 100, got {max_replans}")
+    return Recovery(
+        replan=r.boolean(v.get("replan", d.replan), "sim.recovery.replan"),
+        trigger=r.number(v.get("trigger", d.trigger), "sim.recovery.trigger", gt=0, le=100),
+        time_limit=r.number(v.get("time_limit", d.time_limit), "sim.recovery.time_limit", gt=0, le=600),
+        max_replans=max_replans,
     )
 
 
@@ -524,8 +619,10 @@ def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
     """
     s = scenario
     try:
-        clearance = s.radius + s.margin
-        sep = 2 * s.radius + s.margin
+        # Formations are spaced for the margin the planner plans with
+        # (planner.margin_extra inflates it), so that they fit it too.
+        clearance = s.radius + s.margin + s.planner.margin_extra
+        sep = 2 * s.radius + s.margin + s.planner.margin_extra
         explicit = [np.asarray(p.points, float) for p in (s.start, s.target) if p.points is not None]
         avoid = np.concatenate(explicit) if explicit else np.zeros((0, 2))
         obstacles = []

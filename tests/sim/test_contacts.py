@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner.problem import Circle, Polygon, Problem
-from sim.contacts import GapMonitor, PymunkWitness, static_clearances
+from sim.contacts import SERIES_CAP, GapMonitor, PymunkWitness, static_clearances
 from sim.params import SimParams
 from sim.world import OBSTACLE, ROBOT, WALL, build_world, convex_pieces
 
@@ -180,6 +180,39 @@ def test_monitor_minimum_is_exact_for_many_robots(m):
     touching = {(int(iu[0][q]), int(iu[1][q])) for q in np.flatnonzero((d < 0).any(axis=0))}
     seen = {(c.a, c.b) for c in monitor.contacts() if c.kind == "robot-robot"}
     assert seen == touching
+
+
+def _brute_series(problem, pos):
+    """Per-sample smallest gap by brute force, capped like the monitor's series."""
+    c, m = pos.shape[:2]
+    r = problem.radius
+    stat = static_clearances(problem.env, pos.reshape(-1, 2), len(problem.obstacles)).reshape(c, -1).min(axis=1) - r
+    iu = np.triu_indices(m, 1)
+    d = np.linalg.norm(pos[:, :, None] - pos[:, None, :], axis=3)[:, iu[0], iu[1]].min(axis=1) - 2 * r
+    return np.minimum(np.minimum(stat, d), SERIES_CAP * r)
+
+
+@pytest.mark.parametrize("moving", ["smooth", "jumping"])
+def test_monitor_series_is_the_exact_per_sample_minimum(moving):
+    # Smooth motion uses the Verlet lists; samples that jump everywhere use
+    # nearest neighbours per sample.  Both must give every sample's exact minimum.
+    rng = np.random.default_rng(3)
+    obstacles = (Polygon(U + [10.0, 10.0]), Circle((4.0, 15.0), 1.5), Polygon(L + [15.0, 2.0]))
+    m, c = (60, 80) if moving == "smooth" else (120, 40)
+    base = rng.uniform(1.0, 19.0, size=(m, 2))
+    if moving == "smooth":
+        pos = base[None] + np.cumsum(rng.normal(0, 0.03, size=(c, m, 2)), axis=0)
+    else:
+        pos = rng.uniform(0.3, 19.7, size=(c, m, 2))
+    problem = _problem(base, obstacles, size=20.0)
+    monitor = GapMonitor(problem)
+    for k in range(0, c, 25):
+        monitor.observe(np.arange(k, min(k + 25, c)) * 0.1, pos[k : k + 25])
+    series = monitor.series
+    assert series.shape == (c,)
+    assert series == pytest.approx(_brute_series(problem, pos), abs=1e-12)
+    assert monitor.min_gap == pytest.approx(series.min(), abs=1e-12)
+    assert (series < SERIES_CAP * problem.radius).any()
 
 
 # -- pymunk's witness -----------------------------------------------------------------------
