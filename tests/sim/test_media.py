@@ -114,11 +114,16 @@ def test_failing_gif_write_keeps_the_older_file(tmp_path, monkeypatch):
         write_gif(path, _failing(_frames(), after=5), fps=20)
     assert path.read_bytes() == old
 
-    def broken(*args, **kwargs):  # the encoder fails half-way through the file
-        Path(args[0]).write_bytes(b"GIF89a half")
-        raise OSError("disk full")
+    real = media._GifWriter._write
+    calls = []
 
-    monkeypatch.setattr(iio, "imwrite", broken)
+    def broken(self, *args):  # the encoder fails half-way through the file
+        calls.append(1)
+        if len(calls) == 3:
+            raise OSError("disk full")
+        real(self, *args)
+
+    monkeypatch.setattr(media._GifWriter, "_write", broken)
     with pytest.raises(OSError, match="disk full"):
         write_gif(path, _frames(), fps=20)
     assert path.read_bytes() == old
