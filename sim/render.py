@@ -66,7 +66,9 @@ TARGET_MARK = tint(TARGET, 0.55)  # target discs in videos
 _FLASH_SECONDS = 0.5  # how long a contact flashes [video s]
 _TRAIL_FRACTION = 0.15  # trail length as a fraction of the run
 _TRAIL_MIN_SECONDS = 3.0  # shortest trail [sim s]
-_TRAIL_POINTS = 30  # trail samples per trail length
+_TRAIL_POINTS = 30  # trail samples per trail length, up to _TRAIL_FULL robots
+_TRAIL_FULL = 25  # above this many robots, fewer samples per trail (down to _TRAIL_MIN_POINTS)
+_TRAIL_MIN_POINTS = 8
 _SAME_CONTACT_SECONDS = 0.1  # records of one pair this close in time are one contact [sim s]
 
 
@@ -290,7 +292,8 @@ class Frames(Sequence):
         # trails: positions on a uniform grid, in pixels (at most a few hundred points per robot)
         duration = clock.duration
         self._trail_len = max(_TRAIL_FRACTION * duration, _TRAIL_MIN_SECONDS)
-        self._trail_dt = self._trail_len / _TRAIL_POINTS
+        points = max(_TRAIL_MIN_POINTS, int(_TRAIL_POINTS * min(1.0, math.sqrt(_TRAIL_FULL / m))))
+        self._trail_dt = self._trail_len / points
         self._trail_px = None
         if params.trails and duration > 0:
             grid = np.arange(int(math.floor(duration / self._trail_dt)) + 1) * self._trail_dt

@@ -5,9 +5,11 @@ no console error, and the scenario picture, the video and both plots must be
 decoded, have a size, and come into the viewport when scrolled to.  A
 full-page screenshot is kept: in the test's tmp dir and as
 ``tests/artifacts/run-page.png`` (ignored by git); its path is printed.
-Without chromium or Playwright the test is skipped, and says why.
+Without chromium or Playwright the test is skipped, and says why; with
+``SWARMFORM_REQUIRE_BROWSER=1`` (set by ``.ci/run``) it fails instead.
 """
 
+import os
 import shutil
 from pathlib import Path
 
@@ -24,13 +26,20 @@ PARTS = ("#scenario img", "#video img", "#plot-clearance img", "#plot-tracking i
 
 
 def _browser_or_skip():
+    """Playwright's entry point; a skip saying why when there is no browser (a failure in CI)."""
+    why = None
     if not CHROMIUM.is_file():
-        pytest.skip(f"no browser: {CHROMIUM} is missing (Debian: apt-get install chromium; .ci/run does it)")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.skip("no browser driver: the playwright package is not installed (it is in the dev extra)")
-    return sync_playwright
+        why = f"no browser: {CHROMIUM} is missing (Debian: apt-get install chromium; .ci/run does it)"
+    else:
+        try:
+            from playwright.sync_api import sync_playwright
+        except ImportError:
+            why = "no browser driver: the playwright package is not installed (it is in the dev extra)"
+    if why is None:
+        return sync_playwright
+    if os.environ.get("SWARMFORM_REQUIRE_BROWSER") == "1":
+        pytest.fail(why + "; SWARMFORM_REQUIRE_BROWSER=1 asks for the browser test to run")
+    pytest.skip(why)
 
 
 def _page_with_contacts(tmp_path) -> Path:
@@ -112,3 +121,16 @@ def test_run_page_in_a_headless_browser(tmp_path):
     kept = ARTIFACTS / "run-page.png"
     shutil.copyfile(shot, kept)
     print(f"\nrun page screenshot: {kept} (and {shot})")
+
+
+def test_without_a_browser_the_test_says_why(monkeypatch):
+    import sys
+
+    me = sys.modules[__name__]
+    monkeypatch.setattr(me, "CHROMIUM", Path("/nonexistent/chromium"))
+    monkeypatch.delenv("SWARMFORM_REQUIRE_BROWSER", raising=False)
+    with pytest.raises(pytest.skip.Exception, match="no browser: /nonexistent/chromium is missing"):
+        _browser_or_skip()
+    monkeypatch.setenv("SWARMFORM_REQUIRE_BROWSER", "1")
+    with pytest.raises(pytest.fail.Exception, match="asks for the browser test to run"):
+        _browser_or_skip()
