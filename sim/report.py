@@ -40,6 +40,7 @@ __all__ = ["EMBED_MAX_BYTES", "run_page", "verdict", "write_run_page"]
 EMBED_MAX_BYTES = 24_000_000
 """A video larger than this [bytes] is linked, not embedded (the page stays a sane size)."""
 
+_TITLE_CHARS = 120  # the longest title shown (the raw report keeps the whole name)
 _SHOWN_CONTACTS = 12  # contacts in the table; the rest behind "more"
 _ROBOT_LINES = 30  # up to this many robots, the tracking plot has one line per robot
 _DPI = 100
@@ -117,7 +118,7 @@ def write_run_page(
     ok, line = verdict(report)
     sim = report.get("sim") or {}
     context = {
-        "title": str(report.get("scenario", "run")),
+        "title": _cut(str(report.get("scenario", "run")), _TITLE_CHARS),
         "ok": ok,
         "verdict": line,
         "report": report,
@@ -258,6 +259,10 @@ def _video_rows(video: dict | None) -> list[tuple[str, str, str]]:
                 f"allowed length")
     return [("playback speed", speed, note),
             ("frames", _num(video.get("frames")), f"{_num(video.get('seconds'))} s at {_num(video.get('fps'))} fps")]
+
+
+def _cut(text: str, n: int) -> str:
+    return text if len(text) <= n else text[: n - 3] + "..."
 
 
 def _meta(report: dict) -> list[str]:

@@ -211,6 +211,14 @@ def test_page_escapes_what_it_shows(tmp_path):
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html
 
 
+def test_a_huge_name_is_cut_in_the_title(tmp_path):
+    rep = _report()
+    rep["scenario"] = "n" * 1_000_000
+    doc = _Page(write_run_page(tmp_path / "n.html", rep, None, None, None).read_text(encoding="utf-8"))
+    heading = [t for t in doc.text if t.startswith("nnn")][0]
+    assert len(heading) == 120 and heading.endswith("...")
+
+
 def test_a_large_video_is_linked_not_embedded(tmp_path, monkeypatch):
     gif = _gif(tmp_path / "big.gif")
     monkeypatch.setattr(page, "EMBED_MAX_BYTES", gif.stat().st_size - 1)
