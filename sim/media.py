@@ -210,18 +210,18 @@ def _palette_and_stream(frames, colours) -> tuple[np.ndarray, Iterator[np.ndarra
         n = len(frames)
         if n == 0:
             raise ValueError("frames must hold at least one frame, got none")
-        picks = np.unique(np.linspace(0, n - 1, min(n, _SAMPLE_FRAMES)).round().astype(int))
-        sample = [_check_frame(frames[int(k)], int(k), None) for k in picks]
+        picks = [int(k) for k in np.unique(np.linspace(0, n - 1, min(n, _SAMPLE_FRAMES)).round())]
+        sample = [frames[k] for k in picks]
         stream = iter(frames)
     else:
         it = iter(frames)
         sample = list(itertools.islice(it, _SAMPLE_FRAMES))
         if not sample:
             raise ValueError("frames must hold at least one frame, got none")
+        picks = list(range(len(sample)))
         stream = itertools.chain(sample, it)
-    shape = sample[0].shape
-    for k, f in enumerate(sample):
-        _check_frame(f, k, shape)
+    first = _check_frame(sample[0], picks[0], None)
+    sample = [_check_frame(f, k, first.shape) for k, f in zip(picks, sample)]
     return _shared_palette(sample, colours), stream
 
 

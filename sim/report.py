@@ -4,7 +4,8 @@
 dict written as ``NAME.json``), the time series of the run (see
 :mod:`sim.series`), the scenario picture and the path of the video.  The
 page is rendered from the Jinja2 template ``sim/templates/run.html.j2``
-with autoescaping; plots are drawn with matplotlib (Agg); the picture, the
+with autoescaping; plots are drawn with matplotlib's object API (no pyplot,
+no global backend change); the picture, the
 plots and the video are embedded as data URIs, so the file opens offline,
 alone.  It holds, top to bottom: the verdict in one line; the scenario
 picture and the video; the smallest gap over time with the margin drawn,
@@ -338,9 +339,6 @@ def _video(video: str | Path | None) -> dict | None:
 
 def _plots(report: dict, series: dict) -> list[dict]:
     """The clearance and tracking plots as ``{id, title, uri, width, height}``."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
     t = np.asarray(series.get("times", ()), float).reshape(-1)
     out = []
     if len(t) == 0:
