@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["MAX_RENDER_SIZE", "RenderParams", "SimParams"]
+__all__ = ["MAX_FPS", "MAX_RENDER_SIZE", "RenderParams", "SimParams"]
 
 MAX_RENDER_SIZE = 4096
 """The largest ``render.size`` [px]."""
+MAX_FPS = 120
+"""The highest ``render.fps`` [frames per video second]."""
 
 
 @dataclass(frozen=True)

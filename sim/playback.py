@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .params import MAX_FPS
+
 __all__ = ["MAX_FPS", "MAX_VIDEO_SECONDS", "Timing", "frame_times", "playback_speedup", "timing"]
 
-MAX_FPS = 120
-"""The highest frame rate [frames per video s]."""
 
 MAX_VIDEO_SECONDS = 300.0
 """The longest video [video s], the held end not counted."""

@@ -24,7 +24,7 @@ from planner.geometry import Environment, segment_segment_distance
 from planner.params import PlannerParams
 from planner.problem import Circle, Polygon, Problem, ProblemError, check_placement
 
-from .params import MAX_RENDER_SIZE, RenderParams, SimParams
+from .params import MAX_FPS, MAX_RENDER_SIZE, RenderParams, SimParams
 
 __all__ = [
     "FormationSpec",
@@ -473,6 +473,8 @@ def _read_render(r: _Reader, value) -> RenderParams:
             r.fail(f"render.formats[{i}]", f"unknown format {fm!r} (known: gif, mp4)")
     speed = v.get("speedup", "auto")
     fps = r.integer(v.get("fps", d.fps), "render.fps", ge=1)
+    if fps > MAX_FPS:
+        r.fail("render.fps", f"must be an integer in [1, {MAX_FPS}], got {fps}")
     if fps > 50 and "gif" in formats:
         r.fail("render.fps", f"must be <= 50 for a GIF (frame delays are whole hundredths of a second), got {fps}")
     return RenderParams(

@@ -538,3 +538,19 @@ def test_bad_input_is_named():
         render_frames(p, t, pos, [], _params(size=20000))
     with pytest.raises(ValueError, match="speedup"):
         render_frames(p, t, pos, [], _params(speedup=float("nan")))
+
+
+@pytest.mark.parametrize("render, field", [("{fps: 1000000000, formats: [mp4]}", "render.fps"),
+                                           ("{size: 20000}", "render.size"), ("{size: 10}", "render.size")])
+def test_render_settings_out_of_range_are_input_errors(tmp_path, render, field):
+    from sim.scenario import ScenarioError, read_scenario
+
+    path = tmp_path / "s.yaml"
+    path.write_text("workspace: [10, 10]\nrobots: {radius: 0.5, margin: 0.1}\n"
+                    "start: {points: [[2, 2], [2, 5]]}\ntarget: {points: [[8, 2], [8, 5]]}\n"
+                    f"render: {render}\n")
+    with pytest.raises(ScenarioError, match=field.replace(".", r"\.")):
+        read_scenario(path)
+    path.write_text(path.read_text().replace(f"render: {render}", "render: {size: auto, fps: 120, formats: [mp4]}"))
+    sc = read_scenario(path)
+    assert sc.render.size is None and sc.render.fps == 120
