@@ -1,11 +1,16 @@
-"""Renderer and video-writer speed on synthetic recordings.
+"""Renderer and video-writer speed on synthetic recordings, and the memory of a long video.
 
 Run ``python -m bench.render_speed``.  Two recordings (11 and 100 robots,
 60 s of sim time sampled at 60 Hz, robots on circles and back-and-forth
 lines, a few contacts) are rendered with the default render settings, then
 encoded as GIF (one shared palette) and MP4.  Times are scaled to 300 frames.
-A last table compares the shared-palette GIF encoder with imageio's default
+A second table compares the shared-palette GIF encoder with imageio's default
 GIF writing (an adaptive palette per frame) on the same frames.
+
+``--long N`` (default 3000) renders a video of about N frames (11 robots, at
+real time) straight into GIF and MP4, as ``swarmform run`` does, in a fresh
+process, and prints its wall time and peak resident memory; ``--long 0``
+skips it.
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import subprocess
 import sys
 import tempfile
 import time
@@ -23,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.problem import Circle, Polygon, Problem
-from sim.media import has_mp4, write_gif, write_mp4
+from sim.media import has_mp4, write_gif, write_mp4, write_video
 from sim.params import RenderParams
 from sim.render import playback_speedup, render_frames
 
@@ -120,7 +126,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--size", type=int, default=480, help="frame size [px]")
     ap.add_argument("--fps", type=int, default=20, help="video frame rate")
     ap.add_argument("--no-default", action="store_true", help="skip the (slow) per-frame palette comparison")
+    ap.add_argument("--long", type=int, default=3000, metavar="N",
+                    help="frames of the long-video memory run (0: skip; default 3000)")
+    ap.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.child is not None:
+        _long_child(args.child, args.size, args.fps)
+        return
 
     print(_versions())
     print()
@@ -133,7 +145,7 @@ def main(argv: list[str] | None = None) -> None:
             problem, t, pos, contacts = _recording(m)
             frames, t_render = _timed(
                 lambda: list(render_frames(problem, t, pos, contacts, params, title=f"bench m={m}"))
-            )
+            )  # held in memory here only to time drawing and encoding apart
             n = len(frames)
             per = 300.0 / n
             gif, t_gif = _timed(write_gif, tmp / f"m{m}.gif", frames, args.fps)
@@ -182,6 +194,50 @@ def main(argv: list[str] | None = None) -> None:
             )
             print()
             print(f"shared palette is {t_default / t_shared:.1f}x faster")
+
+    if args.long > 0:
+        print()
+        print(f"Long video: about {args.long} frames of {args.size} px, 11 robots, rendered straight into GIF "
+              f"and MP4 (write_video) in a fresh process:")
+        print()
+        print(_long_run(args.long, args.size, args.fps))
+
+
+def _long_run(frames: int, size: int, fps: int) -> str:
+    """Run :func:`_long_child` in a fresh process; its one-line result."""
+    cmd = [sys.executable, "-m", "bench.render_speed", "--child", str(frames), "--size", str(size),
+           "--fps", str(fps)]
+    out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    return out.stdout.strip()
+
+
+def _peak_rss_mb() -> float:
+    """This process's peak resident memory [MB] (Linux VmHWM: not inherited from the parent)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _long_child(frames: int, size: int, fps: int) -> None:
+    problem, t, pos, contacts = _recording(11, seconds=frames / fps, rate=20.0)
+    params = replace(RenderParams(), size=size, fps=fps, speedup=1.0)
+    before = _peak_rss_mb()
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        fr = render_frames(problem, t, pos, contacts, params, title="long")
+        paths = write_video(Path(tmp) / "long", fr, fps, ("gif", "mp4"))
+        wall = time.perf_counter() - t0
+        sizes = ", ".join(f"{p.suffix[1:].upper()} {p.stat().st_size / 1e6:.1f} MB" for p in paths)
+    peak = _peak_rss_mb()
+    print("| frames | wall time [s] | peak RSS [MB] | RSS before rendering [MB] | files |")
+    print("| ---: | ---: | ---: | ---: | --- |")
+    print(f"| {len(fr)} | {wall:.1f} | {peak:.0f} | {before:.0f} | {sizes} |")
 
 
 if __name__ == "__main__":

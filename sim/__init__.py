@@ -1,7 +1,33 @@
-"""swarmform's validation harness: scenarios, pymunk execution, contacts, rendering, the CLI."""
+"""swarmform's validation harness: scenarios, pymunk execution, contacts, videos, the run page, the CLI.
+
+A scenario file runs end to end with :func:`run_scenario` (what ``swarmform
+run`` does: plan, check, execute, render, write ``NAME.json``, the video and
+``NAME.html``).  The pieces work on a problem built in code:
+
+>>> import numpy as np
+>>> from planner import Circle, PlannerParams, Problem, plan
+>>> from sim import RenderParams, SimParams, execute, render_frames, write_video
+>>> problem = Problem(20.0, 10.0, (Circle((10.0, 5.0), 1.5),), radius=0.5, margin=0.1,
+...                   start=[[2, 3], [2, 7]], target=[[18, 3], [18, 7]])
+>>> result, stats = plan(problem, PlannerParams(time_limit=10), np.random.default_rng(0))
+>>> run = execute(problem, result, SimParams())
+>>> run.ok, len(run.contacts)
+(True, 0)
+>>> frames = render_frames(problem, run.times, run.positions, run.contacts, RenderParams(),
+...                        step_times=result.times)
+>>> frames[0].dtype, frames[0].shape[2], len(frames) == frames.timing.frames
+(dtype('uint8'), 3, True)
+>>> import pathlib, tempfile
+>>> folder = pathlib.Path(tempfile.mkdtemp())
+>>> [p.name for p in write_video(folder / "demo", frames, fps=20, formats=["gif"])]
+['demo.gif']
+"""
 
 from .execute import Contact, SimReport, execute
+from .media import write_video
 from .params import RenderParams, SimParams
+from .render import draw_scenario, render_frames
+from .report import write_run_page
 from .runner import InputError, RunResult, run_scenario
 from .scenario import Scenario, ScenarioError, build_problem, read_scenario
 
@@ -15,7 +41,11 @@ __all__ = [
     "SimParams",
     "SimReport",
     "build_problem",
+    "draw_scenario",
     "execute",
     "read_scenario",
+    "render_frames",
     "run_scenario",
+    "write_run_page",
+    "write_video",
 ]

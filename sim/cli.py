@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from .argtypes import int_at_least, seconds
+from .words import plural
 
 __all__ = ["main"]
 
@@ -53,12 +54,12 @@ def _cmd_show(args) -> int:
     return EXIT_OK
 
 
-def _print_stats(stats, margin: float, out=sys.stdout):
+def _print_stats(stats, margin: float, out=sys.stdout, *, auto: bool = False):
     rows = [
         ("found", "yes" if stats.found else "no"),
         ("planning time", f"{stats.planning_time_s:.3f} s"),
-        ("g, q used", f"{stats.g}, {stats.q}"),
-        ("pebble graphs", f"{stats.graphs}"),
+        ("g, q", "auto, auto" if auto else f"{stats.g}, {stats.q}"),
+        ("pebble graphs", f"{stats.graphs} sampled"),
         ("connections", f"{stats.connections}"),
     ]
     if stats.found:
@@ -96,10 +97,10 @@ def _cmd_plan(args) -> int:
     try:
         result, stats = plan(problem, params, rng)
     except NoPlanFound as exc:
-        _print_stats(exc.stats, problem.margin)
+        _print_stats(exc.stats, problem.margin, auto=params.auto)
         print(f"no plan: {exc}", file=sys.stderr)
         return EXIT_FAIL
-    _print_stats(stats, problem.margin)
+    _print_stats(stats, problem.margin, auto=params.auto)
     result.save(out, extra={"scenario": scenario.name, "seed": seed})
     print(f"wrote {out}")
     return EXIT_OK
@@ -130,10 +131,19 @@ def _verdict_reason(report: dict) -> str:
     if plan.get("valid") is False:
         reasons.append("the plan comes closer than the margin")
     if sim.get("contacts"):
-        reasons.append(f"{sim['contacts']} contacts in the physics run")
+        reasons.append(f"{plural(sim['contacts'], 'contact')} in the physics run")
     if sim and not sim.get("reached"):
         reasons.append("not every robot reached a target")
     return "; ".join(reasons) or "zero contacts, every robot on a target"
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("swarmform")
+    except PackageNotFoundError:
+        return "(not installed)"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -142,6 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Switch a swarm of disc robots between formations: plan with UPUMP, "
         "check the plan exactly, execute it in pymunk and render it.",
     )
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -152,7 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scenario", help="scenario YAML file")
     s.add_argument("--seed", type=int_at_least(0), help="override the scenario's seed")
     s.add_argument("-o", "--output", help="PNG file (default media/NAME-scenario.png)")
-    s.add_argument("--size", type=int, default=480, help="picture side in pixels (default 480)")
+    s.add_argument("--size", type=int, default=None,
+                   help="picture side in pixels (default: grows with the workspace and m, 480 to 960)")
     s.set_defaults(func=_cmd_show)
 
     pl = sub.add_parser("plan", help="plan a scenario and write the plan JSON (with its stats)")
@@ -164,7 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser(
         "run",
-        help="plan (or load a plan), validate, execute in physics, render; write DIR/NAME.json and video",
+        help="plan (or load a plan), validate, execute in physics, render; "
+        "write DIR/NAME.json, the video and the page DIR/NAME.html",
     )
     r.add_argument("scenario", help="scenario YAML file")
     r.add_argument("--seed", type=int_at_least(0), help="override the scenario's (or the plan file's) seed")

@@ -136,6 +136,15 @@ class SimReport:
     def first_contact(self) -> Contact | None:
         return self.contacts[0] if self.contacts else None
 
+    def series(self, max_samples: int = 2000) -> dict | None:
+        """``times``, ``min_gap`` and ``tracking_error`` thinned for plots (:func:`sim.series.thin`), or None."""
+        if self.min_gap is None or self.tracking_error is None:
+            return None
+        from .series import thin
+
+        arrays = {"times": self.times, "min_gap": self.min_gap, "tracking_error": self.tracking_error}
+        return thin(arrays, max_samples)
+
     @property
     def realtime_factor(self) -> float:
         """Simulated seconds per wall-clock second."""

@@ -4,21 +4,26 @@ Every writer goes through :func:`atomic_path`: the file appears under its
 final name only once it is complete, so an interrupted or failing write never
 leaves a half-written file and never destroys an older one.
 
-GIF frames share one palette, computed once from the colours of frames
-spread over the whole video (:func:`_shared_palette`); every frame is then
-mapped to it without dithering and without a palette of its own, which is
-several times faster than a per-frame adaptive palette and looks the same
-for flat-coloured drawings.
+Videos are streamed: frames are encoded one at a time into every format at
+once (GIF and MP4 from one pass), so memory does not grow with the number
+of frames.  GIF frames share one palette, computed once from the colours the
+drawing is known to use and from frames spread over the whole video
+(:func:`_shared_palette`); every frame is then mapped to it without
+dithering and without a palette of its own, which is several times faster
+than a per-frame adaptive palette and looks the same for flat-coloured
+drawings.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import math
 import os
+import struct
 import tempfile
-from collections.abc import Iterable, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -95,90 +100,170 @@ def gif_durations(n: int, fps: float) -> list[int]:
     the total is ``n / fps`` to within 10 ms even when ``100 / fps`` is not a
     whole number (30 fps gives 30, 40, 30, 30, 40, ... ms).
     """
-    edges = [round(k * 100.0 / fps) for k in range(n + 1)]
-    return [10 * (b - a) for a, b in zip(edges, edges[1:])]
+    return [10 * _delay_cs(k, fps) for k in range(n)]
 
 
-def write_gif(path: str | Path, frames: Iterable[np.ndarray], fps: float) -> Path:
+def _delay_cs(k: int, fps: float) -> int:
+    """The delay of frame ``k`` [cs] (see :func:`gif_durations`)."""
+    return round((k + 1) * 100.0 / fps) - round(k * 100.0 / fps)
+
+
+def write_gif(
+    path: str | Path, frames: Iterable[np.ndarray], fps: float, *, colours: np.ndarray | None = None
+) -> Path:
     """Write ``(H, W, 3) uint8`` frames as a GIF that loops forever, atomically.
 
     fps: frames per second, in ``(0, GIF_MAX_FPS]``.
+    frames, colours: see :func:`write_video`.
 
     All frames share one palette of at most 256 colours (see the module
     docstring).  Identical consecutive frames are stored once, with their
     delays summed, so the total duration is kept.
     """
     fps = _check_fps(fps, GIF_MAX_FPS)
-    frames = _materialise(frames)
-    _write_gif(Path(path), frames, fps)
-    return Path(path)
+    path = Path(path)
+    _write({"gif": path}, frames, fps, colours, None)
+    return path
 
 
-def _write_gif(path: Path, frames: Sequence[np.ndarray], fps: float) -> None:
-    import imageio.v3 as iio
-    from PIL import Image
+class _GifWriter:
+    """Streams index frames into a GIF file: a few frames in memory, whatever the length.
 
-    palette = _shared_palette(frames)
-    pal_img = Image.new("P", (1, 1))
-    pal_img.putpalette(palette.tobytes())
-    none = Image.Dither.NONE
-    index = np.empty((len(frames), *frames[0].shape[:2]), np.uint8)
-    for k, f in enumerate(frames):
-        index[k] = np.asarray(Image.fromarray(f).quantize(palette=pal_img, dither=none))
-    delays = gif_durations(len(frames), fps)
-    # Index frames go in as "L" images with the palette given once: Pillow
-    # then keeps the indices as they are (the palette has no repeated colour)
-    # instead of building an adaptive palette for every frame.  With
-    # ``optimize`` it stores only the changed box of each frame and marks the
-    # unchanged pixels in it with the free index ``len(palette)``.
-    with atomic_path(path) as tmp:
-        iio.imwrite(
-            tmp,
-            index,
-            extension=".gif",
-            plugin="pillow",
-            mode="L",
-            is_batch=True,
-            duration=delays if len(delays) > 1 else delays[0],
-            loop=0,
-            palette=palette.tobytes(),
-            optimize=True,  # unchanged pixels of a frame become transparent
-        )
+    The header and the shared colour table are written first; each frame is
+    then stored as the box of pixels that changed since the frame before,
+    unchanged pixels in the box marked with the free index ``len(palette)``
+    (transparent; frames are left in place).  A frame equal to the one
+    before only lengthens that one's delay.
+    """
+
+    _MAX_DELAY_CS = 65535  # a GIF delay field is 16 bits
+
+    def __init__(self, fh, palette: np.ndarray, fps: float):
+        from PIL import Image
+
+        self.fh, self.fps = fh, fps
+        self.free = len(palette)
+        self._pal_img = Image.new("P", (1, 1))
+        self._pal_img.putpalette(palette.tobytes())
+        bits = max(1, math.ceil(math.log2(self.free + 1)))
+        self._table = palette.tobytes() + bytes(3 * ((1 << bits) - self.free))
+        self._bits = bits
+        self.count = 0
+        self._pending: list | None = None  # [index frame, delay in cs]
+        self._shown: np.ndarray | None = None  # what a viewer shows after the frames written
+
+    def add(self, frame: np.ndarray) -> None:
+        from PIL import Image
+
+        idx = np.asarray(Image.fromarray(frame).quantize(palette=self._pal_img, dither=Image.Dither.NONE))
+        if self.count == 0:
+            h, w = idx.shape
+            self.fh.write(b"GIF89a" + struct.pack("<HHBBB", w, h, 0xF0 | (self._bits - 1), 0, 0) + self._table)
+            self.fh.write(b"!\xff\x0bNETSCAPE2.0\x03\x01\x00\x00\x00")  # loop forever
+        delay = _delay_cs(self.count, self.fps)
+        self.count += 1
+        p = self._pending
+        if p is not None and p[1] + delay <= self._MAX_DELAY_CS and np.array_equal(idx, p[0]):
+            p[1] += delay
+            return
+        if p is not None:
+            self._write(*p)
+        self._pending = [idx, delay]
+
+    def close(self) -> None:
+        if self._pending is not None:
+            self._write(*self._pending)
+            self._pending = None
+        self.fh.write(b";")
+
+    def _write(self, idx: np.ndarray, delay_cs: int) -> None:
+        from PIL import GifImagePlugin, Image
+
+        params = {"duration": 10 * delay_cs, "disposal": 1}
+        if self._shown is None:
+            box, x0, y0 = idx, 0, 0
+        else:
+            changed = idx != self._shown
+            rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+            if len(rows) == 0:  # the same picture again (a delay too long for one frame)
+                box, x0, y0 = np.full((1, 1), self.free, np.uint8), 0, 0
+            else:
+                y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+                box = np.where(changed[y0:y1, x0:x1], idx[y0:y1, x0:x1], np.uint8(self.free))
+            params["transparency"] = self.free
+        data = GifImagePlugin.getdata(Image.fromarray(np.ascontiguousarray(box), "L"),
+                                      offset=(int(x0), int(y0)), **params)
+        self.fh.write(b"".join(data))
+        self._shown = idx
 
 
-def _shared_palette(frames: Sequence[np.ndarray]) -> np.ndarray:
+def _palette_and_stream(frames, colours) -> tuple[np.ndarray, Iterator[np.ndarray]]:
+    """The shared palette, and the frames to encode (all of them, in order).
+
+    A sequence (``len`` and indexing) is sampled over its whole length; from
+    a one-shot iterator the first ``_SAMPLE_FRAMES`` frames are held and
+    sampled.
+    """
+    if colours is None:
+        colours = getattr(frames, "colours", None)
+    if isinstance(frames, (Sequence, np.ndarray)):
+        n = len(frames)
+        if n == 0:
+            raise ValueError("frames must hold at least one frame, got none")
+        picks = [int(k) for k in np.unique(np.linspace(0, n - 1, min(n, _SAMPLE_FRAMES)).round())]
+        sample = [frames[k] for k in picks]
+        stream = iter(frames)
+    else:
+        it = iter(frames)
+        sample = list(itertools.islice(it, _SAMPLE_FRAMES))
+        if not sample:
+            raise ValueError("frames must hold at least one frame, got none")
+        picks = list(range(len(sample)))
+        stream = itertools.chain(sample, it)
+    first = _check_frame(sample[0], picks[0], None)
+    sample = [_check_frame(f, k, first.shape) for k, f in zip(picks, sample)]
+    return _shared_palette(sample, colours), stream
+
+
+def _shared_palette(frames: Sequence[np.ndarray], colours: np.ndarray | None = None) -> np.ndarray:
     """One palette ``(n, 3) uint8`` (n <= 255, no repeated colour) for all frames.
 
-    The colours of up to ``_SAMPLE_FRAMES`` frames spread evenly over the
-    video are counted (every pixel of the first and last frame, every other
-    row and column of the others).  If there are at most 256, they are the
-    palette.  Otherwise the ``_EXACT_COLOURS`` colours that fill the largest
-    areas (counted where a sampled pixel equals its right and lower
-    neighbours: background, obstacles, discs, trails) are kept exactly, and
-    the others (antialiased edges and text) are reduced by median cut with a
-    short k-means refinement, each counted at most ``_REST_WEIGHT`` times so
-    that large areas do not crowd out small details.
+    ``frames`` is a sample of the video (the first and last frames in full,
+    every other row and column of the others are counted); ``colours`` are
+    colours known to be drawn, most important first.  If there are at most
+    255 colours in all, they are the palette.  Otherwise the known colours
+    and then the colours that fill the largest areas (counted where a
+    sampled pixel equals its right and lower neighbours: background,
+    obstacles, discs, trails) are kept exactly, up to ``_EXACT_COLOURS``, and
+    the others (anti-aliased edges and text) are reduced by median cut with
+    a short k-means refinement, each counted at most ``_REST_WEIGHT`` times
+    so that large areas do not crowd out small details.
 
     Index ``n`` stays free and inside the GIF colour table (whose size is a
     power of two): the encoder marks unchanged pixels with it.
     """
     from PIL import Image
 
-    n = len(frames)
-    picks = np.unique(np.linspace(0, n - 1, min(n, _SAMPLE_FRAMES)).round().astype(int))
-    grids = [frames[0], frames[-1]] + [frames[k][::2, ::2] for k in picks[1:-1]]
+    grids = [frames[0], frames[-1]] + [f[::2, ::2] for f in frames[1:-1]]
     packed = [_pack(g.reshape(-1, 3)).reshape(g.shape[:2]) for g in grids]
-    colours, counts = np.unique(np.concatenate([p.ravel() for p in packed]), return_counts=True)
-    if len(colours) <= _PALETTE_SIZE:
-        return _with_free_index(colours)
+    known = np.zeros(0, np.uint32)
+    if colours is not None and len(colours):
+        known = _pack(np.asarray(colours, np.uint8).reshape(-1, 3))
+        known = known[np.sort(np.unique(known, return_index=True)[1])][:_EXACT_COLOURS]
+    colours_seen, counts = np.unique(np.concatenate([p.ravel() for p in packed]), return_counts=True)
+    every = np.union1d(colours_seen, known)
+    if len(every) <= _PALETTE_SIZE:
+        return _with_free_index(every)
     flat = np.concatenate(
         [p[:-1, :-1][(p[:-1, :-1] == p[1:, :-1]) & (p[:-1, :-1] == p[:-1, 1:])] for p in packed]
     )
     flat_colours, flat_counts = np.unique(flat, return_counts=True)
-    order = np.argsort(-flat_counts, kind="stable")[:_EXACT_COLOURS]
-    exact = np.sort(flat_colours[order])
-    rest = ~np.isin(colours, exact)
-    rest_px = _unpack(np.repeat(colours[rest], np.minimum(counts[rest], _REST_WEIGHT)))
+    by_area = flat_colours[np.argsort(-flat_counts, kind="stable")]
+    exact = np.sort(np.concatenate([known, by_area[~np.isin(by_area, known)]])[:_EXACT_COLOURS])
+    rest = ~np.isin(colours_seen, exact)
+    if not rest.any():
+        return _with_free_index(exact)
+    rest_px = _unpack(np.repeat(colours_seen[rest], np.minimum(counts[rest], _REST_WEIGHT)))
     q = Image.fromarray(rest_px[None]).quantize(
         _PALETTE_SIZE - len(exact), method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE, kmeans=2
     )
@@ -228,46 +313,50 @@ def write_mp4(path: str | Path, frames: Iterable[np.ndarray], fps: float) -> Pat
     fps = _check_fps(fps, math.inf)
     if not has_mp4():
         return None
-    _write_mp4(Path(path), iter(frames), fps)
-    return Path(path)
+    path = Path(path)
+    _write({"mp4": path}, frames, fps, None, None)
+    return path
 
 
-def _write_mp4(path: Path, frames: Iterable[np.ndarray], fps: float) -> None:
-    # imageio-ffmpeg directly rather than through imageio's writer: that one
-    # is only closed by the garbage collector after an error, so ffmpeg could
-    # still be writing the temporary file after it has been removed.
-    import imageio_ffmpeg
+class _Mp4Writer:
+    """Streams frames to ffmpeg (through imageio-ffmpeg), started by the first frame."""
 
-    with atomic_path(path) as tmp:
-        writer = None
-        shape = None
-        try:
-            for n, f in enumerate(frames):
-                f = _check_frame(f, n, shape)
-                if writer is None:
-                    shape = f.shape
-                    if shape[0] % 2 or shape[1] % 2:
-                        raise ValueError(f"MP4 (yuv420p) frames need even height and width, got {shape[:2]}")
-                    writer = imageio_ffmpeg.write_frames(
-                        str(tmp),
-                        (shape[1], shape[0]),
-                        fps=fps,
-                        codec="libx264",
-                        pix_fmt_out="yuv420p",
-                        quality=_MP4_QUALITY,
-                        macro_block_size=1,
-                        ffmpeg_log_level="error",
-                        output_params=["-preset", "veryfast", "-movflags", "+faststart"],
-                    )
-                    writer.send(None)
-                writer.send(f)
-        finally:
-            if writer is not None:
-                writer.close()  # waits for ffmpeg to finish
-        if writer is None:
-            raise ValueError("frames must hold at least one frame, got none")
-        if tmp.stat().st_size == 0:
-            raise OSError(f"ffmpeg wrote nothing to {path}")
+    def __init__(self, path: Path, fps: float):
+        self.path, self.fps = path, fps
+        self._gen = None
+
+    def add(self, frame: np.ndarray) -> None:
+        if self._gen is None:
+            import imageio_ffmpeg
+
+            h, w = frame.shape[:2]
+            if h % 2 or w % 2:
+                raise ValueError(f"MP4 (yuv420p) frames need even height and width, got {(h, w)}")
+            # imageio-ffmpeg directly rather than through imageio's writer:
+            # that one is only closed by the garbage collector after an error,
+            # so ffmpeg could still be writing the temporary file after it has
+            # been removed.
+            self._gen = imageio_ffmpeg.write_frames(
+                str(self.path),
+                (w, h),
+                fps=self.fps,
+                codec="libx264",
+                pix_fmt_out="yuv420p",
+                quality=_MP4_QUALITY,
+                macro_block_size=1,
+                ffmpeg_log_level="error",
+                output_params=["-preset", "veryfast", "-movflags", "+faststart"],
+            )
+            self._gen.send(None)
+        self._gen.send(frame)
+
+    def close(self) -> None:
+        """Wait for ffmpeg to finish (also after an error); idempotent."""
+        if self._gen is not None:
+            gen, self._gen = self._gen, None
+            gen.close()
+            if self.path.stat().st_size == 0:
+                raise OSError(f"ffmpeg wrote nothing to {self.path}")
 
 
 # ----------------------------------------------------------------------------
@@ -275,15 +364,32 @@ def _write_mp4(path: Path, frames: Iterable[np.ndarray], fps: float) -> None:
 
 
 def write_video(
-    path_stem: str | Path, frames: Iterable[np.ndarray], fps: float, formats: Iterable[str]
+    path_stem: str | Path,
+    frames: Iterable[np.ndarray],
+    fps: float,
+    formats: Iterable[str],
+    *,
+    colours: np.ndarray | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> list[Path]:
     """Write the frames once per format, to ``path_stem`` + ``.gif`` / ``.mp4``.
 
-    formats: any of ``gif`` and ``mp4``.  ``frames`` is consumed once; it is
-    held in memory when a GIF is asked for (the shared palette needs frames
-    from the whole video) and streamed otherwise.  MP4 is skipped when
-    imageio-ffmpeg is not installed.  Returns the paths written, in the order
-    of ``formats``.
+    formats: any of ``gif`` and ``mp4``; MP4 is skipped when imageio-ffmpeg
+        is not installed.
+    frames: ``(H, W, 3) uint8`` arrays, all the same shape.  Every format is
+        written in one pass over them, frame by frame, so memory does not
+        grow with the number of frames.  For the GIF's shared palette, a
+        sequence (``len`` and indexing, such as what
+        :func:`sim.render.render_frames` returns) is sampled over the whole
+        video first; of a one-shot iterator the first 60 frames are sampled.
+    colours: ``(n, 3) uint8`` colours kept exactly in the GIF palette, most
+        important first (default: the ``colours`` attribute of ``frames``,
+        if any).
+    progress: called with the fraction of frames written, when the number
+        of frames is known.
+
+    Returns the paths written, in the order of ``formats``.  Nothing is left
+    under a final name unless every file was written.
     """
     formats = list(dict.fromkeys(formats))
     unknown = [f for f in formats if f not in ("gif", "mp4")]
@@ -291,23 +397,41 @@ def write_video(
         raise ValueError(f"formats must be gif and/or mp4, got {unknown[0]!r}")
     stem = Path(path_stem)
     fps = _check_fps(fps, GIF_MAX_FPS if "gif" in formats else math.inf)
-    mp4 = "mp4" in formats and has_mp4()
-    if "gif" not in formats:
-        if not mp4:
-            return []
-        _write_mp4(stem.with_name(stem.name + ".mp4"), iter(frames), fps)
-        return [stem.with_name(stem.name + ".mp4")]
-    frames = _materialise(frames)
-    out = []
-    for fmt in formats:
-        target = stem.with_name(stem.name + "." + fmt)
-        if fmt == "gif":
-            _write_gif(target, frames, fps)
-            out.append(target)
-        elif mp4:
-            _write_mp4(target, iter(frames), fps)
-            out.append(target)
-    return out
+    targets = {f: stem.with_name(stem.name + "." + f) for f in formats if f == "gif" or has_mp4()}
+    if targets:
+        _write(targets, frames, fps, colours, progress)
+    return list(targets.values())
+
+
+def _write(targets: dict[str, Path], frames, fps: float, colours, progress) -> None:
+    """Stream ``frames`` into every target format at once, each file atomically."""
+    total = len(frames) if isinstance(frames, (Sequence, np.ndarray)) else None
+    with ExitStack() as stack:
+        writers = []
+        if "gif" in targets:
+            palette, stream = _palette_and_stream(frames, colours)
+            tmp = stack.enter_context(atomic_path(targets["gif"]))
+            gif = _GifWriter(stack.enter_context(open(tmp, "wb")), palette, fps)
+            writers.append(gif)
+        else:
+            stream = iter(frames)
+        if "mp4" in targets:
+            mp4 = _Mp4Writer(stack.enter_context(atomic_path(targets["mp4"])), fps)
+            stack.callback(mp4.close)  # ffmpeg is waited for, also after an error
+            writers.append(mp4)
+        shape = None
+        n = 0
+        for n, f in enumerate(stream, 1):
+            f = _check_frame(f, n - 1, shape)
+            shape = f.shape
+            for w in writers:
+                w.add(f)
+            if progress is not None and total:
+                progress(n / total)
+        if n == 0:
+            raise ValueError("frames must hold at least one frame, got none")
+        for w in writers:
+            w.close()
 
 
 # ----------------------------------------------------------------------------
@@ -332,12 +456,3 @@ def _check_frame(f, n: int, shape: tuple | None) -> np.ndarray:
     if shape is not None and f.shape != shape:
         raise ValueError(f"frames[{n}] has shape {f.shape}, the first frame {shape}")
     return np.ascontiguousarray(f)
-
-
-def _materialise(frames: Iterable[np.ndarray]) -> list[np.ndarray]:
-    out: list[np.ndarray] = []
-    for n, f in enumerate(frames):
-        out.append(_check_frame(f, n, out[0].shape if out else None))
-    if not out:
-        raise ValueError("frames must hold at least one frame, got none")
-    return out

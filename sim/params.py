@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 __all__ = [
+    "MAX_FPS",
+    "MAX_RENDER_SIZE",
     "Failure",
     "Impulse",
     "Noise",
@@ -13,6 +15,11 @@ __all__ = [
     "RenderParams",
     "SimParams",
 ]
+
+MAX_RENDER_SIZE = 4096
+"""The largest ``render.size`` [px]."""
+MAX_FPS = 120
+"""The highest ``render.fps`` [frames per video second]."""
 
 
 @dataclass(frozen=True)
@@ -145,17 +152,20 @@ class RenderParams:
     """Off-screen rendering.
 
     fps: frames per second of the video.
-    size: frame side in pixels (the longer workspace side maps to it).
+    size: frame side in pixels (the longer workspace side maps to it), or
+        ``None`` (auto): 480 to 960, growing with the workspace (measured in
+        robot radii) and the number of robots (:func:`sim.canvas.frame_size`).
     trails: draw each robot's recent path.
     formats: any of ``gif`` and ``mp4``; mp4 is written when imageio-ffmpeg
         is installed (the ``video`` extra) and skipped otherwise.
     speedup: sim seconds per video second, or ``None`` (auto) to fit the
-        whole run into about ``video_seconds``.
+        whole run into about ``video_seconds``.  Either is raised when the
+        video would last more than ``sim.playback.MAX_VIDEO_SECONDS`` (300 s).
     video_seconds: target video length for the automatic speed-up [s].
     """
 
     fps: int = 20
-    size: int = 480
+    size: int | None = None
     trails: bool = True
     formats: tuple[str, ...] = ("gif", "mp4")
     speedup: float | None = None

@@ -1,14 +1,14 @@
 """Off-screen drawing with pygame-ce: scenario pictures and video frames.
 
-Drawing is kept apart from the model: a :class:`Canvas` takes read-only
-positions and returns ``(H, W, 3) uint8`` arrays; writing files is
-:mod:`sim.media`'s job.  No window is ever opened (``SDL_VIDEODRIVER=dummy``).
+Drawing is kept apart from the model: :func:`draw_scenario` and
+:func:`render_frames` take read-only positions and return ``(H, W, 3)
+uint8`` arrays; writing files is :mod:`sim.media`'s job.  No window is ever
+opened (``SDL_VIDEODRIVER=dummy``).  The surface, its layout, colours and
+legend are :mod:`sim.canvas`'s; playback timing is :mod:`sim.playback`'s.
 
 :func:`render_frames` turns a physics recording (sample times, positions and
-contacts) into video frames.  Playback runs ``speedup`` sim seconds per video
-second; frame ``k`` shows sim time ``k * speedup / fps``, positions linearly
-interpolated from the recording, and the last recorded time is shown and held
-for about a second at the end.
+contacts) into a :class:`Frames` sequence: frame ``k`` is drawn when it is
+asked for, so a video of any length is written with a few frames in memory.
 """
 
 from __future__ import annotations
@@ -26,192 +26,74 @@ import pygame  # noqa: E402
 
 from planner.problem import Circle, Problem  # noqa: E402
 
-from .params import RenderParams  # noqa: E402
+from .canvas import (  # noqa: E402
+    BACKGROUND,
+    CONTACT,
+    LABEL_ON_CONTACT,
+    OBSTACLE,
+    OUTLINE,
+    START,
+    TARGET,
+    TEXT,
+    WALL,
+    Canvas,
+    fit_text,
+    frame_size,
+    label_font,
+    robot_colors,
+    tint,
+)
+from .params import MAX_RENDER_SIZE, RenderParams  # noqa: E402
+from .playback import MAX_VIDEO_SECONDS, Timing, frame_times, playback_speedup, timing  # noqa: E402
+from .words import plural  # noqa: E402
 
 __all__ = [
+    "CONTACT",
+    "MAX_VIDEO_SECONDS",
     "Canvas",
+    "Frames",
     "draw_scenario",
+    "frame_size",
     "frame_times",
     "playback_speedup",
     "render_frames",
     "robot_colors",
 ]
 
-BACKGROUND = (248, 248, 244)
-WALL = (40, 40, 48)
-OBSTACLE = (96, 100, 112)
-START = (40, 90, 200)
-TARGET = (236, 120, 40)
-TARGET_MARK = (250, 200, 160)
-TEXT = (20, 20, 24)
-CONTACT = (230, 20, 20)
-TRAIL = (150, 170, 220)
-OUTLINE = (60, 60, 70)
-LABEL_ON_CONTACT = (255, 255, 255)
+START_MARK = tint(START, 0.45)  # start rings in videos
+TARGET_MARK = tint(TARGET, 0.55)  # target discs in videos
 
-_READABLE = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
-"""Mantissas of the automatic speed-ups: 1, 1.5, 2, 2.5, 3, 4, 5, 6, 8, 10, 15, ..."""
-
-_HOLD_SECONDS = 1.0  # how long the last frame is held [video s]
-_FLASH_SECONDS = 0.5  # how long a contact stays red [video s]
+_FLASH_SECONDS = 0.5  # how long a contact flashes [video s]
 _TRAIL_FRACTION = 0.15  # trail length as a fraction of the run
 _TRAIL_MIN_SECONDS = 3.0  # shortest trail [sim s]
-_TRAIL_POINTS = 40  # trail samples per trail length
-_TINT = 0.55  # how far a trail colour is blended towards the background
+_TRAIL_POINTS = 30  # trail samples per trail length, up to _TRAIL_FULL robots
+_TRAIL_FULL = 25  # above this many robots, fewer samples per trail (down to _TRAIL_MIN_POINTS)
+_TRAIL_MIN_POINTS = 8
 _SAME_CONTACT_SECONDS = 0.1  # records of one pair this close in time are one contact [sim s]
 
 
-def robot_colors(m: int) -> list[tuple[int, int, int]]:
-    """The RGB colour of each of ``m`` robots: distinct, mid-saturation, golden-ratio hues.
+def draw_scenario(problem: Problem, size: int | None = None, title: str = "") -> np.ndarray:
+    """The workspace, obstacles, start (hollow rings) and target (filled discs) as an image.
 
-    Hues near pure red are left out: red marks contacts.
+    size: the longer side [px]; ``None`` picks :func:`sim.canvas.frame_size`.
+    Starts carry robot indices where the discs are big enough for them.
     """
-    out = []
-    for i in range(m):
-        h = (i * 0.61803398875) % 1.0
-        c = pygame.Color(0)
-        c.hsva = (25.0 + h * 310.0, 55.0, 85.0, 100.0)
-        out.append((c.r, c.g, c.b))
-    return out
-
-
-def _tint(color: tuple[int, int, int], amount: float = _TINT) -> tuple[int, int, int]:
-    """``color`` blended towards the background by ``amount`` (0: unchanged)."""
-    return tuple(int(round(c + (b - c) * amount)) for c, b in zip(color, BACKGROUND))
-
-
-class Canvas:
-    """Maps the workspace to pixels and draws on a static background.
-
-    The longer workspace side spans ``size`` pixels minus a small border;
-    a header band above the workspace holds the text so that it never hides
-    a robot; both frame sides are even (video encoders need it); y points up.
-    """
-
-    def __init__(self, problem: Problem, size: int = 480):
-        if not pygame.font.get_init():
-            pygame.font.init()
-        self.problem = problem
-        border = max(4, size // 60)
-        self.scale = (size - 2 * border) / max(problem.width, problem.height)
-        self.font = pygame.font.Font(None, max(14, size // 30))
-        self.header = 2 * self.font.get_linesize() + 4
-        w = int(round(problem.width * self.scale)) + 2 * border
-        h = int(round(problem.height * self.scale)) + 2 * border + self.header
-        self.width_px = w + (w % 2)
-        self.height_px = h + (h % 2)
-        self.border = border
-        self.label_font = pygame.font.Font(None, max(10, int(problem.radius * self.scale * 1.2)))
-        self.r_px = max(2, int(round(problem.radius * self.scale)))
-        self.background = self._draw_background()
-
-    # -- coordinates ----------------------------------------------------------
-    def to_px(self, pts: np.ndarray) -> np.ndarray:
-        """Workspace points ``(..., 2)`` as ``(n, 2)`` pixel coordinates (x right, y down)."""
-        pts = np.asarray(pts, float).reshape(-1, 2)
-        x = self.border + pts[:, 0] * self.scale
-        y = self.height_px - self.border - pts[:, 1] * self.scale
-        return np.stack([x, y], axis=1)
-
-    def _draw_background(self) -> pygame.Surface:
-        s = pygame.Surface((self.width_px, self.height_px))
-        s.fill(BACKGROUND)
-        p = self.problem
-        corners = self.to_px(np.array([[0, 0], [p.width, 0], [p.width, p.height], [0, p.height]]))
-        pygame.draw.polygon(s, WALL, [tuple(c) for c in corners], width=max(2, self.border // 2))
-        for ob in p.obstacles:
-            if isinstance(ob, Circle):
-                c = self.to_px(np.array(ob.center))[0]
-                pygame.draw.circle(s, OBSTACLE, tuple(c), ob.radius * self.scale)
-            else:
-                pygame.draw.polygon(s, OBSTACLE, [tuple(v) for v in self.to_px(ob.vertices)])
-        return s
-
-    # -- pieces ---------------------------------------------------------------
-    def surface(self) -> pygame.Surface:
-        return self.background.copy()
-
-    def draw_discs(self, s, pts, color, *, width=0, labels=False, colors=None):
-        for i, c in enumerate(self.to_px(pts)):
-            col = colors[i] if colors is not None else color
-            pygame.draw.circle(s, col, (float(c[0]), float(c[1])), self.r_px, width=width)
-            if labels and self.r_px >= 6:
-                img = self.label_font.render(str(i), True, TEXT)
-                s.blit(img, img.get_rect(center=(int(c[0]), int(c[1]))))
-
-    def text(self, s, lines: list[str], corner: str = "top-left"):
-        y = 2
-        for line in lines:
-            img = self.font.render(line, True, TEXT, BACKGROUND)
-            x = self.border + 4 if corner == "top-left" else self.width_px - self.border - 4 - img.get_width()
-            s.blit(img, (x, y))
-            y += img.get_height() + 1
-
-    @staticmethod
-    def to_array(s: pygame.Surface) -> np.ndarray:
-        w, h = s.get_size()
-        return np.frombuffer(pygame.image.tobytes(s, "RGB"), np.uint8).reshape(h, w, 3)
-
-
-def draw_scenario(problem: Problem, size: int = 480, title: str = "") -> np.ndarray:
-    """The workspace, obstacles, start (hollow) and target (filled) as an image."""
-    cv = Canvas(problem, size)
+    legend = [("start", "start (hollow)"), ("target", "target (filled)")]
+    cv = Canvas(problem, size, legend=legend)
     s = cv.surface()
-    cv.draw_discs(s, problem.target, TARGET)
-    cv.draw_discs(s, problem.start, START, width=max(2, cv.r_px // 4), labels=True)
-    lines = [title] if title else []
-    lines.append(f"m={problem.m}  start: hollow  target: filled")
-    cv.text(s, lines)
+    for c in cv.to_px(problem.target):
+        cv.disc(s, TARGET, c, cv.r)
+    font = label_font(cv.r, problem.m)
+    for i, c in enumerate(cv.to_px(problem.start)):
+        cv.ring(s, START, c, cv.r, max(2, int(cv.r / 4)))
+        if font is not None:
+            img = font.render(str(i), True, TEXT)
+            s.blit(img, img.get_rect(center=(int(round(c[0])), int(round(c[1])))))
+    if title:
+        cv.text_line(s, title, 0)
+    cv.text_line(s, plural(problem.m, "robot") + (f", {plural(len(problem.obstacles), 'obstacle')}"
+                                                  if problem.obstacles else ""), 1)
     return cv.to_array(s)
-
-
-# ----------------------------------------------------------------------------
-# playback timing
-
-
-def _readable(x: float) -> float:
-    """The value of ``1, 1.5, 2, 2.5, 3, 4, 5, 6, 8`` times a power of ten nearest to ``x``
-    (in ratio), never below 1."""
-    if not x > 1.0:
-        return 1.0
-    e = math.floor(math.log10(x))
-    cands = [v * 10.0**k for k in (e - 1, e, e + 1) for v in _READABLE]
-    best = min(cands, key=lambda v: abs(math.log(v / x)))
-    return max(1.0, float(f"{best:.6g}"))
-
-
-def playback_speedup(duration: float, params: RenderParams) -> float:
-    """Sim seconds per video second.
-
-    ``params.speedup`` when set; otherwise the readable value (1, 1.5, 2,
-    2.5, 3, 4, 5, 6, 8, 10, 15, ...) that makes a run of ``duration`` sim
-    seconds last closest to ``params.video_seconds``, and at least 1 (a short
-    run plays in real time rather than in slow motion).
-    """
-    if params.speedup is not None:
-        if not params.speedup > 0:
-            raise ValueError(f"speedup must be > 0 or None (auto), got {params.speedup!r}")
-        return float(params.speedup)
-    if not params.video_seconds > 0:
-        raise ValueError(f"video_seconds must be > 0, got {params.video_seconds!r}")
-    return _readable(max(0.0, float(duration)) / params.video_seconds)
-
-
-def frame_times(duration: float, speedup: float, fps: int) -> np.ndarray:
-    """Sim time shown by every frame [s], the held end included.
-
-    Frames ``k = 0, 1, ...`` show ``k * speedup / fps`` up to ``duration``;
-    a frame at exactly ``duration`` follows when the grid misses it, and the
-    last time is then repeated for about one video second.
-    """
-    duration = max(0.0, float(duration))
-    dt = speedup / fps
-    n = int(math.floor(duration / dt + 1e-9)) + 1
-    t = np.arange(n) * dt
-    if duration - t[-1] > 1e-9 * max(1.0, duration):
-        t = np.append(t, duration)
-    hold = int(round(_HOLD_SECONDS * fps))
-    return np.concatenate([t, np.full(hold, t[-1])])
 
 
 # ----------------------------------------------------------------------------
@@ -227,8 +109,8 @@ def render_frames(
     *,
     step_times: np.ndarray | None = None,
     title: str = "",
-) -> Iterator[np.ndarray]:
-    """Video frames ``(H, W, 3) uint8`` (H and W even) of a recorded run.
+) -> Frames:
+    """The video frames of a recorded run, as a :class:`Frames` sequence.
 
     times: ``(T,)`` non-decreasing sample times [s] of the recording.
     positions: ``(T, m, 2)`` robot centres at those times [workspace units].
@@ -237,20 +119,20 @@ def render_frames(
         (other robot, obstacle index, or -1 for the wall); a ``witness``
         that is a point ``(x, y)`` is taken as the contact point, anything
         else there (such as the name of the detector) is ignored and the
-        boundary point nearest to the robot is used.  Robots in a contact
-        from the last half video second are drawn red with a red ring, and an
-        obstacle or wall contact marks its contact point.  The header counts
-        the contacts so far; records of one pair less than 0.1 s apart (one
-        contact seen by several detectors) count once.
-    params: frame rate, size, trails and playback speed (see
-        :func:`playback_speedup` and :func:`frame_times`).
+        boundary point nearest to the robot is used.  For half a video
+        second after a contact the frame gets a red border, the robots in
+        it are drawn red, and a big red ring marks where it happened.  The
+        header counts the contacts so far; records of one pair less than
+        0.1 s apart (one contact seen by several detectors) count once.
+    params: frame rate, size (``None``: grows with the workspace and m),
+        trails and playback speed (see :func:`sim.playback.timing`: the
+        video lasts at most ``MAX_VIDEO_SECONDS``).
     step_times: the plan's step start times and end time ``(K + 1,)``; the
-        header then names the active step ``k`` (``step_times[k] <= t <
-        step_times[k + 1]``, 0-based like the validator's messages).
-    title: first header line.
+        header then names the active step, counted from 1 (``step 1/5``),
+        and says when the plan is over and the robots are settling.
+    title: first header line (cut to fit).
 
-    The arguments are checked at once; frames are drawn lazily, one per
-    ``next()``.  Each yielded array is a fresh copy.
+    The arguments are checked at once; frames are drawn when asked for.
     """
     params = params if params is not None else RenderParams()
     t = np.asarray(times, float).reshape(-1)
@@ -262,18 +144,18 @@ def render_frames(
         raise ValueError(f"times must be non-decreasing, got times[{i + 1}] = {t[i + 1]:g} < {t[i]:g}")
     if pos.shape != (len(t), problem.m, 2):
         raise ValueError(f"positions must be (T, m, 2) = ({len(t)}, {problem.m}, 2), got {pos.shape}")
-    if not isinstance(params.fps, (int, np.integer)) or params.fps < 1:
-        raise ValueError(f"fps must be an integer >= 1, got {params.fps!r}")
-    if not params.size >= 64:
-        raise ValueError(f"size must be >= 64 pixels, got {params.size!r}")
+    size = params.size
+    if size is not None and (isinstance(size, bool) or not isinstance(size, (int, np.integer))
+                             or not 64 <= size <= MAX_RENDER_SIZE):
+        raise ValueError(f"size must be an integer in [64, {MAX_RENDER_SIZE}] pixels or None (auto), got {size!r}")
     steps = None
     if step_times is not None:
         steps = np.asarray(step_times, float).reshape(-1)
-        if len(steps) < 1 or np.any(np.diff(steps) < 0):
-            raise ValueError("step_times must be a non-empty, non-decreasing (K + 1,) array")
-    contact_rows = _contact_table(problem, contacts, t, pos)
-    speedup = playback_speedup(t[-1] - t[0], params)
-    return _frames(problem, t, pos, contact_rows, params, speedup, steps, str(title))
+        if len(steps) < 1 or not np.all(np.isfinite(steps)) or np.any(np.diff(steps) < 0):
+            raise ValueError("step_times must be a non-empty, non-decreasing (K + 1,) array of finite times")
+    clock = timing(t[-1] - t[0], params)
+    rows = _contact_table(problem, contacts, t, pos)
+    return Frames(problem, t, pos, rows, params, clock, steps, str(title))
 
 
 class _Contacts:
@@ -368,150 +250,194 @@ def _interpolate(t: np.ndarray, pos: np.ndarray, ts: np.ndarray) -> np.ndarray:
     return pos[i] + w[:, None, None] * (pos[i + 1] - pos[i])
 
 
-def _label_font(r_px: int, m: int) -> pygame.font.Font | None:
-    """The largest font whose widest index fits in a disc of radius ``r_px``; None if none."""
-    if r_px < 6:
-        return None
-    widest = str(max(m - 1, 0))
-    for size in range(int(r_px * 1.5), 8, -1):
-        font = pygame.font.Font(None, size)
-        w, h = font.size(widest)
-        if w <= 1.7 * r_px and h <= 2.0 * r_px:
-            return font
-    return None
+class Frames(Sequence):
+    """The frames of a recorded run: ``(H, W, 3) uint8`` arrays, H and W even.
 
+    A sequence: ``len(frames)``, ``frames[k]`` (drawn on demand, a fresh
+    array) and iteration (each frame drawn once, the held end repeated).
+    Nothing per frame is kept, so memory does not grow with the video's
+    length.  ``timing`` is the :class:`sim.playback.Timing` used (speed-up,
+    frame count), ``speedup`` its speed-up, ``colours`` the flat colours of
+    the drawing ``(n, 3) uint8``, most important first (for a GIF palette).
+    """
 
-def _fit_text(font: pygame.font.Font, text: str, width: int) -> str:
-    """``text`` cut (with an ellipsis) to at most ``width`` pixels."""
-    if font.size(text)[0] <= width:
-        return text
-    while text and font.size(text + "...")[0] > width:
-        text = text[:-1]
-    return text + "..." if text else ""
+    def __init__(self, problem, t, pos, contacts: _Contacts, params, clock: Timing, steps, title):
+        self.problem = problem
+        self.timing = clock
+        self.speedup = clock.speedup
+        self._t, self._pos, self._contacts, self._steps = t, pos, contacts, steps
+        legend = [("robot", "robot"), ("start", "start (hollow)"), ("target", "target (filled)")]
+        if params.trails:
+            legend.append(("trail", "trail"))
+        legend.append(("contact", "contact"))
+        cv = Canvas(problem, params.size, legend=legend, start_color=START_MARK, target_color=TARGET_MARK)
+        self.canvas = cv
+        m = problem.m
+        self._colors = robot_colors(m)
+        self._tints = [tint(c) for c in self._colors]
+        r = cv.r
 
+        # static layer: background, walls, obstacles, start rings, target discs, fixed header text
+        static = cv.background.copy()
+        for c in cv.to_px(problem.target):
+            cv.disc(static, TARGET_MARK, c, r)
+        for c in cv.to_px(problem.start):
+            cv.ring(static, START_MARK, c, r, max(1, int(r / 5)))
+        speed = f"{clock.speedup:g}x speed"
+        speed_w = cv.text_line(static, speed, 0, right=True)
+        cv.text_line(static, title, 0, width=cv.width_px - 2 * cv.border - 20 - speed_w)
+        self._static = static
+        self._surf = pygame.Surface((cv.width_px, cv.height_px))
 
-def _frames(problem, t, pos, contacts: _Contacts, params, speedup, steps, title):
-    cv = Canvas(problem, params.size)
-    fps = int(params.fps)
-    t0 = float(t[0])
-    duration = float(t[-1] - t0)
-    ft = frame_times(duration, speedup, fps)
-    n_drawn = len(ft) - int(round(_HOLD_SECONDS * fps))
-    m = problem.m
-    r = cv.r_px
+        # trails: positions on a uniform grid, in pixels (at most a few hundred points per robot)
+        duration = clock.duration
+        self._trail_len = max(_TRAIL_FRACTION * duration, _TRAIL_MIN_SECONDS)
+        points = max(_TRAIL_MIN_POINTS, int(_TRAIL_POINTS * min(1.0, math.sqrt(_TRAIL_FULL / m))))
+        self._trail_dt = self._trail_len / points
+        self._trail_px = None
+        if params.trails and duration > 0:
+            grid = np.arange(int(math.floor(duration / self._trail_dt)) + 1) * self._trail_dt
+            self._trail_px = cv.to_px(_interpolate(t, pos, t[0] + grid)).reshape(len(grid), m, 2)
+        self._trail_w = max(1, int(round(0.4 * r)))
 
-    frame_px = cv.to_px(_interpolate(t, pos, t0 + ft[:n_drawn])).reshape(n_drawn, m, 2)
-    colors = robot_colors(m)
-    tints = [_tint(c) for c in colors]
+        # labels, pre-rendered once, only where discs are big enough for them
+        lf = label_font(r, m)
+        self._labels = [lf.render(str(i), True, TEXT) for i in range(m)] if lf else None
+        self._labels_hot = [lf.render(str(i), True, LABEL_ON_CONTACT) for i in range(m)] if lf else None
 
-    # static layer: background, walls, obstacles, target markers
-    static = cv.background.copy()
-    ring = max(1, r // 5)
-    for c in cv.to_px(problem.target):
-        pygame.draw.circle(static, TARGET_MARK, (float(c[0]), float(c[1])), r, width=ring)
-        if r >= 4:
-            h = max(2, r // 3)
-            pygame.draw.line(static, TARGET_MARK, (c[0] - h, c[1]), (c[0] + h, c[1]))
-            pygame.draw.line(static, TARGET_MARK, (c[0], c[1] - h), (c[0], c[1] + h))
+        self._flash = _FLASH_SECONDS * clock.speedup
+        self._hot_ring = max(2.0, r / 3)
+        self._spot_r = max(3.0, r / 2)
+        self._marker_r = max(2.5 * r, 12.0)
+        self._marker_w = max(3, int(r / 3))
+        self._last: tuple[int, np.ndarray] | None = None
 
-    # trails: positions on a uniform grid, in pixels
-    trail_len = max(_TRAIL_FRACTION * duration, _TRAIL_MIN_SECONDS)
-    trail_dt = trail_len / _TRAIL_POINTS
-    trail_px = None
-    if params.trails and duration > 0:
-        grid = np.arange(int(math.floor(duration / trail_dt)) + 1) * trail_dt
-        trail_px = cv.to_px(_interpolate(t, pos, t0 + grid)).reshape(len(grid), m, 2)
-    trail_w = max(1, int(round(0.4 * r)))
+    # -- the sequence ---------------------------------------------------------
+    def __len__(self) -> int:
+        return self.timing.frames
 
-    # labels, pre-rendered once
-    lf = _label_font(r, m)
-    labels = [lf.render(str(i), True, TEXT) for i in range(m)] if lf else None
-    labels_hot = [lf.render(str(i), True, LABEL_ON_CONTACT) for i in range(m)] if lf else None
-    label_off = [(-img.get_width() / 2, -img.get_height() / 2) for img in labels] if labels else None
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = int(k)
+        n = len(self)
+        if k < 0:
+            k += n
+        if not 0 <= k < n:
+            raise IndexError(f"frame index {k} out of range for {n} frames")
+        return self._draw(min(k, self.timing.drawn - 1))
 
-    # header pieces that do not change
-    font = cv.font
-    line_h = font.get_linesize() + 1
-    left_x = cv.border + 4
-    right_x = cv.width_px - cv.border - 4
-    speed_img = font.render(f"x{speedup:g}", True, TEXT, BACKGROUND)
-    title_img = font.render(
-        _fit_text(font, title, right_x - left_x - speed_img.get_width() - 12), True, TEXT, BACKGROUND
-    )
-    static.blit(title_img, (left_x, 2))
-    static.blit(speed_img, (right_x - speed_img.get_width(), 2))
+    def __iter__(self) -> Iterator[np.ndarray]:
+        frame = None
+        for k in range(self.timing.drawn):
+            frame = self._draw(k)
+            yield frame
+        for _ in range(self.timing.held):
+            yield frame.copy()
 
-    flash = _FLASH_SECONDS * speedup
-    hot_ring = max(2, r // 3)
-    spot_r = max(3, r // 2)
-    surf = pygame.Surface((cv.width_px, cv.height_px))
-    total = f"{duration:.1f}"
-    frame = None
-    for k in range(n_drawn):
-        now = float(ft[k])
-        surf.blit(static, (0, 0))
-        cur = frame_px[k]
+    @property
+    def colours(self) -> np.ndarray:
+        """The flat colours of the drawing ``(n, 3) uint8``: fixed ones first, then robots and trails."""
+        fixed = [BACKGROUND, WALL, OBSTACLE, TEXT, CONTACT, OUTLINE, LABEL_ON_CONTACT, START_MARK, TARGET_MARK]
+        return np.array(list(dict.fromkeys(fixed + [c for pair in zip(self._colors, self._tints) for c in pair])),
+                        np.uint8)
 
-        if trail_px is not None:
-            j1 = min(int(math.floor(now / trail_dt + 1e-9)), len(trail_px) - 1)
-            j0 = max(0, int(math.ceil((now - trail_len) / trail_dt - 1e-9)))
-            seg = np.concatenate([trail_px[j0 : j1 + 1], cur[None]], axis=0)
-            if len(seg) >= 2:
-                extent = (seg.max(axis=0) - seg.min(axis=0)).max(axis=1)
-                for i in np.flatnonzero(extent >= 1.0):
-                    pygame.draw.lines(surf, tints[i], False, seg[:, i].tolist(), trail_w)
+    # -- one frame --------------------------------------------------------------
+    def _draw(self, k: int) -> np.ndarray:
+        cv = self.canvas
+        now = self.timing.time(k)
+        t0 = float(self._t[0])
+        tc = t0 + now
+        cur = cv.to_px(_interpolate(self._t, self._pos, np.array([tc]))[0])
+        surf = self._surf
+        surf.blit(self._static, (0, 0))
+        self._draw_trails(surf, now, cur)
 
         # contacts: records within the flash window, and the count so far
-        tc = t0 + now
-        i0 = int(np.searchsorted(contacts.time, tc - flash, side="left"))
-        i1 = int(np.searchsorted(contacts.time, tc, side="right"))
+        ct = self._contacts
+        i0 = int(np.searchsorted(ct.time, tc - self._flash, side="left"))
+        i1 = int(np.searchsorted(ct.time, tc, side="right"))
+        m = self.problem.m
         hot = np.zeros(m, bool)
-        spots = ()
         if i1 > i0:
-            hot[contacts.a[i0:i1]] = True
-            bb = contacts.b[i0:i1]
+            hot[ct.a[i0:i1]] = True
+            bb = ct.b[i0:i1]
             hot[bb[bb >= 0]] = True
-            spots = _contact_spots(cv, contacts, i0, i1)
 
+        r = cv.r
         for i in np.flatnonzero(~hot):
-            c = (cur[i, 0], cur[i, 1])
-            pygame.draw.circle(surf, colors[i], c, r)
-            pygame.draw.circle(surf, OUTLINE, c, r, width=1)
-            if labels is not None:
-                surf.blit(labels[i], (c[0] + label_off[i][0], c[1] + label_off[i][1]))
-        for p in spots:
-            pygame.draw.circle(surf, CONTACT, p, spot_r)
-        for i in np.flatnonzero(hot):  # on top, with a thick red ring
-            c = (cur[i, 0], cur[i, 1])
-            pygame.draw.circle(surf, CONTACT, c, r + hot_ring)
-            pygame.draw.circle(surf, OUTLINE, c, r, width=1)
-            if labels is not None:
-                surf.blit(labels_hot[i], (c[0] + label_off[i][0], c[1] + label_off[i][1]))
+            cv.disc(surf, self._colors[i], cur[i], r)
+            cv.ring(surf, OUTLINE, cur[i], r, 1)
+            self._label(surf, self._labels, i, cur[i])
+        if i1 > i0:
+            self._draw_flash(surf, i0, i1, cur, hot)
 
-        status = f"t = {now:.1f} s / {total} s"
-        if steps is not None:
-            K = len(steps) - 1
-            if K > 0 and tc < steps[-1]:
-                k_step = int(np.clip(np.searchsorted(steps, tc, side="right") - 1, 0, K - 1))
-                status += f"   step {k_step}/{K}"
-            else:
-                status += f"   step -/{K} (settling)" if K > 0 else "   no steps"
-        surf.blit(font.render(status, True, TEXT, BACKGROUND), (left_x, 2 + line_h))
+        status = f"t = {now:.1f} s / {self.timing.duration:.1f} s" + self._step_text(tc)
         if i1 > 0:
-            img = font.render(f"CONTACTS: {contacts.seen[i1 - 1]}", True, CONTACT, BACKGROUND)
-            surf.blit(img, (right_x - img.get_width(), 2 + line_h))
+            seen = plural(int(ct.seen[i1 - 1]), "contact")
+            if i1 > i0:
+                img = cv.font.render(f" CONTACT  ({seen}) ", True, LABEL_ON_CONTACT, CONTACT)
+            else:
+                img = cv.font.render(seen, True, CONTACT, BACKGROUND)
+            x = cv.width_px - cv.border - 4 - img.get_width()
+            surf.blit(img, (x, cv.pad + cv.line_h))
+            cv.text_line(surf, status, 1, width=x - cv.border - 12)
+        else:
+            cv.text_line(surf, status, 1)
+        return Canvas.to_array(surf)
 
-        frame = Canvas.to_array(surf)
-        yield frame.copy()
-    for _ in range(len(ft) - n_drawn):
-        yield frame.copy()
+    def _label(self, surf, labels, i: int, c) -> None:
+        if labels is not None:
+            img = labels[i]
+            surf.blit(img, (int(round(c[0] - img.get_width() / 2)), int(round(c[1] - img.get_height() / 2))))
 
+    def _draw_trails(self, surf, now: float, cur: np.ndarray) -> None:
+        if self._trail_px is None:
+            return
+        dt = self._trail_dt
+        j1 = min(int(math.floor(now / dt + 1e-9)), len(self._trail_px) - 1)
+        j0 = max(0, int(math.ceil((now - self._trail_len) / dt - 1e-9)))
+        seg = np.concatenate([self._trail_px[j0 : j1 + 1], cur[None]], axis=0)
+        if len(seg) < 2:
+            return
+        extent = (seg.max(axis=0) - seg.min(axis=0)).max(axis=1)
+        w = self._trail_w
+        for i in np.flatnonzero(extent >= 1.0):
+            pts = seg[:, i].tolist()
+            col = self._tints[i]
+            if w <= 1:
+                pygame.draw.aalines(surf, col, False, pts)
+            else:
+                for a, b in zip(pts, pts[1:]):
+                    pygame.draw.aaline(surf, col, a, b, w)
 
-def _contact_spots(cv: Canvas, contacts: _Contacts, i0: int, i1: int) -> list[tuple[int, int]]:
-    """Distinct pixel centres of the obstacle and wall contact points in ``[i0, i1)``."""
-    pts = contacts.point[i0:i1]
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) == 0:
-        return []
-    px = np.round(cv.to_px(pts)).astype(int)
-    return [(int(x), int(y)) for x, y in np.unique(px, axis=0)]
+    def _draw_flash(self, surf, i0: int, i1: int, cur: np.ndarray, hot: np.ndarray) -> None:
+        """Robots in a recent contact in red, a big ring where it happened, a red frame border."""
+        cv, ct, r = self.canvas, self._contacts, self.canvas.r
+        for i in np.flatnonzero(hot):  # on top, with a thick red ring
+            cv.disc(surf, CONTACT, cur[i], r + self._hot_ring)
+            cv.ring(surf, OUTLINE, cur[i], r, 1)
+            self._label(surf, self._labels_hot, i, cur[i])
+        places = []
+        for n in range(i0, i1):
+            if ct.b[n] >= 0:  # two robots: between them, now
+                places.append((cur[ct.a[n]] + cur[ct.b[n]]) / 2)
+            else:
+                p = cv.to_px(ct.point[n])[0]
+                cv.disc(surf, CONTACT, p, self._spot_r)
+                places.append(p)
+        for p in np.unique(np.round(np.array(places)), axis=0):
+            cv.ring(surf, CONTACT, p, self._marker_r, self._marker_w)
+        pygame.draw.rect(surf, CONTACT, surf.get_rect(), width=cv.pad)
+
+    def _step_text(self, tc: float) -> str:
+        steps = self._steps
+        if steps is None:
+            return ""
+        k_all = len(steps) - 1
+        if k_all == 0:
+            return "   no motion planned"
+        if tc < steps[-1]:
+            k = int(np.clip(np.searchsorted(steps, tc, side="right") - 1, 0, k_all - 1))
+            return f"   step {k + 1}/{k_all}"
+        return f"   plan done ({plural(k_all, 'step')}), settling"

@@ -22,9 +22,12 @@ from planner.bounds import lower_bounds
 from .execute import SimReport, execute
 from .media import atomic_path, has_mp4, write_video
 from .progress import ProgressBar
+from .playback import MAX_VIDEO_SECONDS
 from .render import render_frames
+from .report import run_page
 from .scenario import Scenario, build_problem, read_scenario
 from .series import write_series
+from .words import plural
 
 __all__ = ["InputError", "RunResult", "plan_summary", "run_scenario", "sim_summary"]
 
@@ -43,12 +46,21 @@ class RunResult:
     plan: Plan | None = None
 
 
-def plan_summary(stats: PlanStats, *, valid: bool | None = None) -> dict:
-    """The ``plan`` block of a run report (units: s and workspace units)."""
+def plan_summary(stats: PlanStats, *, valid: bool | None = None, auto: bool = False) -> dict:
+    """The ``plan`` block of a run report (units: s and workspace units).
+
+    In auto mode ``g`` and ``q`` are ``"auto"``; ``graphs`` is then the
+    number of pebble graphs really sampled (0 when a direct try made the
+    plan, which ``direct`` names).
+    """
     d = stats.to_dict()
     keys = ("found", "planning_time_s", "g", "q", "graphs", "connections", "steps", "makespan_s",
             "path_length", "min_clearance", "makespan_lower_bound_s", "path_length_lower_bound")
     out = {k: d.get(k) for k in keys}
+    if auto:
+        out["g"] = out["q"] = "auto"
+        if d.get("direct"):
+            out["direct"] = d["direct"]
     if valid is not None:
         out["valid"] = valid
     return out
@@ -99,7 +111,8 @@ def run_scenario(
     say = (lambda *a: print(*a, file=out)) if out is not None else (lambda *a: None)
     say(f"{name} (seed {seed}): {problem.m} robots, {scenario.start.describe()} -> {scenario.target.describe()}")
 
-    report: dict = {"scenario": name, "seed": seed, "robots": problem.m, "scenario_file": str(path)}
+    report: dict = {"scenario": name, "seed": seed, "robots": problem.m, "radius": problem.radius,
+                    "margin": problem.margin, "scenario_file": str(path)}
     if loaded is not None:
         result, stats = _check_loaded(loaded, problem, scenario, str(plan_path))
         report["plan_file"] = str(plan_path)
@@ -108,16 +121,22 @@ def run_scenario(
         try:
             result, stats = plan(problem, params, rng)
         except NoPlanFound as exc:
-            report["plan"] = plan_summary(exc.stats)
+            report["plan"] = plan_summary(exc.stats, auto=params.auto)
             report["plan"]["error"] = str(exc)
             report["sim"] = None
             report["media"] = []
-            say(f"  no plan: {exc}")
-            return RunResult(report, 1, _write_report(out_dir / f"{name}.json", report))
+            report["ok"] = False
+            say(f"  no plan in {exc.stats.planning_time_s:.2f} s: {exc}")
+            report["page"] = str(run_page(out_dir / f"{name}.html", report, problem))
+            say(f"  wrote {report['page']}")
+            report_path = _write_report(out_dir / f"{name}.json", report)
+            say(f"  wrote {report_path}")
+            return RunResult(report, 1, report_path)
     valid = bool(stats.min_clearance >= problem.margin - 1e-9)
-    report["plan"] = plan_summary(stats, valid=valid)
-    say(f"  plan: {stats.steps} steps, makespan {stats.makespan_s:.1f} s, min clearance "
-        f"{stats.min_clearance:.4f} (margin {problem.margin:g}){'' if valid else '  BELOW THE MARGIN'}")
+    report["plan"] = plan_summary(stats, valid=valid, auto=loaded is None and params.auto)
+    made = f"planned in {stats.planning_time_s:.2f} s" if loaded is None else f"from {plan_path}"
+    say(f"  plan: {plural(stats.steps, 'step')} ({made}), makespan {stats.makespan_s:.1f} s, "
+        f"min clearance {stats.min_clearance:.4f} (margin {problem.margin:g}){'' if valid else '  BELOW THE MARGIN'}")
 
     report["plan"]["margin"] = problem.margin
     if loaded is None:
@@ -134,7 +153,7 @@ def run_scenario(
     with atomic_path(series) as tmp:
         write_series(tmp, sim)
     report["sim"]["series_file"] = series.name
-    say(f"  physics: {len(sim.contacts)} contacts, min clearance {sim.min_clearance:.4f}, "
+    say(f"  physics: {plural(len(sim.contacts), 'contact')}, min clearance {sim.min_clearance:.4f}, "
         f"tracking error {sim.max_tracking_error:.2g}, reached {'yes' if sim.reached else 'no'}, "
         f"{sim.sim_time_s:.1f} s simulated in {sim.wall_time_s:.1f} s")
     say(f"  physics verdict: {sim.verdict}")
@@ -145,12 +164,19 @@ def run_scenario(
     if render:
         frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
                                step_times=result.times, title=name)
-        media = write_video(out_dir / name, frames, scenario.render.fps, scenario.render.formats)
+        report["video"] = frames.timing.to_dict()
+        if frames.timing.raised:
+            say(f"  video: {frames.speedup:g}x speed, raised to keep it within {MAX_VIDEO_SECONDS:g} s")
+        bar = ProgressBar("  video", enabled=progress)
+        media = write_video(out_dir / name, frames, scenario.render.fps, scenario.render.formats, progress=bar)
+        bar.close()
         for m in media:
             say(f"  wrote {m}")
     report["media"] = [str(m) for m in media]
     code = 0 if (sim.ok and valid) else 1
     report["ok"] = code == 0
+    report["page"] = str(run_page(out_dir / f"{name}.html", report, problem, result, sim, media))
+    say(f"  wrote {report['page']}")
     report_path = _write_report(out_dir / f"{name}.json", report)
     say(f"  wrote {report_path}")
     return RunResult(report, code, report_path, media, sim, result)

@@ -24,7 +24,7 @@ from planner.geometry import Environment, segment_segment_distance
 from planner.params import PlannerParams
 from planner.problem import Circle, Polygon, Problem, ProblemError, check_placement
 
-from .params import Failure, Impulse, Noise, Pushes, Recovery, RenderParams, SimParams
+from .params import MAX_FPS, MAX_RENDER_SIZE, Failure, Impulse, Noise, Pushes, Recovery, RenderParams, SimParams
 
 __all__ = [
     "FormationSpec",
@@ -568,16 +568,25 @@ def _read_render(r: _Reader, value) -> RenderParams:
             r.fail(f"render.formats[{i}]", f"unknown format {fm!r} (known: gif, mp4)")
     speed = v.get("speedup", "auto")
     fps = r.integer(v.get("fps", d.fps), "render.fps", ge=1)
+    if fps > MAX_FPS:
+        r.fail("render.fps", f"must be an integer in [1, {MAX_FPS}], got {fps}")
     if fps > 50 and "gif" in formats:
         r.fail("render.fps", f"must be <= 50 for a GIF (frame delays are whole hundredths of a second), got {fps}")
     return RenderParams(
         fps=fps,
-        size=r.integer(v.get("size", d.size), "render.size", ge=64),
+        size=_render_size(r, v.get("size", "auto")),
         trails=r.boolean(v.get("trails", d.trails), "render.trails"),
         formats=tuple(dict.fromkeys(formats)),
         speedup=None if speed == "auto" else r.number(speed, "render.speedup", gt=0),
         video_seconds=r.number(v.get("video_seconds", d.video_seconds), "render.video_seconds", gt=0),
     )
+
+
+def _render_size(r: _Reader, value) -> int | None:
+    size = r.int_or_auto(value, "render.size", ge=64)
+    if size is not None and size > MAX_RENDER_SIZE:
+        r.fail("render.size", f"must be an integer in [64, {MAX_RENDER_SIZE}] or 'auto', got {size}")
+    return size
 
 
 # ----------------------------------------------------------------------------

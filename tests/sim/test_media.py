@@ -114,11 +114,16 @@ def test_failing_gif_write_keeps_the_older_file(tmp_path, monkeypatch):
         write_gif(path, _failing(_frames(), after=5), fps=20)
     assert path.read_bytes() == old
 
-    def broken(*args, **kwargs):  # the encoder fails half-way through the file
-        Path(args[0]).write_bytes(b"GIF89a half")
-        raise OSError("disk full")
+    real = media._GifWriter._write
+    calls = []
 
-    monkeypatch.setattr(iio, "imwrite", broken)
+    def broken(self, *args):  # the encoder fails half-way through the file
+        calls.append(1)
+        if len(calls) == 3:
+            raise OSError("disk full")
+        real(self, *args)
+
+    monkeypatch.setattr(media._GifWriter, "_write", broken)
     with pytest.raises(OSError, match="disk full"):
         write_gif(path, _frames(), fps=20)
     assert path.read_bytes() == old
@@ -255,3 +260,95 @@ def test_gif_of_one_frame_and_of_one_held_frame(tmp_path):
     held = write_gif(tmp_path / "held.gif", [still] * 5, fps=10)
     assert len(iio.imread(held, index=None)) == 1
     assert iio.immeta(held, index=0)["duration"] == 500
+
+
+# ----------------------------------------------------------------------------
+# streaming: memory, palette sampling, long stills, progress
+
+
+def _moving(n, h=96, w=128, late=None):
+    """A generator of ``n`` frames (a square moving right); ``late = (k, colour)`` paints a
+    small patch in that colour from frame ``k`` on."""
+    for k in range(n):
+        f = np.empty((h, w, 3), np.uint8)
+        f[:] = COLOURS[0]
+        f[:6] = COLOURS[1]
+        x = 2 + (3 * k) % (w - 20)
+        f[20:40, x : x + 12] = COLOURS[2 + k % 4]
+        if late is not None and k >= late[0]:
+            f[60:70, 60:70] = late[1]
+        yield f
+
+
+def _peak_bytes(fn) -> int:
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize("formats", [("gif",), ("gif", "mp4")])
+def test_write_video_memory_does_not_grow_with_the_frame_count(tmp_path, formats):
+    if "mp4" in formats and not has_mp4():
+        pytest.skip("imageio-ffmpeg is not installed")
+    frame_bytes = 96 * 128 * 3
+    few = _peak_bytes(lambda: write_video(tmp_path / "few", _moving(80), 20, formats))
+    many = _peak_bytes(lambda: write_video(tmp_path / "many", _moving(800), 20, formats))
+    assert many < few + 20 * frame_bytes, (few, many)
+    assert len(iio.imread(tmp_path / "many.gif", index=None)) == 800
+    # negative control: holding the frames is what this measurement sees
+    held = _peak_bytes(lambda: list(_moving(800)))
+    assert held > 700 * frame_bytes
+
+
+def test_gif_palette_keeps_known_colours_that_appear_late(tmp_path):
+    late = np.array([17, 200, 33], np.uint8)  # only from frame 150 on: after the sampled head
+    hint = np.concatenate([COLOURS, late[None]])
+    exact = write_gif(tmp_path / "hint.gif", _moving(200, late=(150, late)), 20, colours=hint)
+    guessed = write_gif(tmp_path / "guess.gif", _moving(200, late=(150, late)), 20)
+    back = iio.imread(exact, index=None)[..., :3]
+    assert np.array_equal(back[-1][60:70, 60:70].reshape(-1, 3)[0], late)
+    # negative control: from a one-shot stream, the palette never saw the late colour
+    back = iio.imread(guessed, index=None)[..., :3]
+    assert not np.array_equal(back[-1][60:70, 60:70].reshape(-1, 3)[0], late)
+    # a sequence is sampled over its whole length: the late colour is found without a hint
+    frames = list(_moving(200, late=(150, late)))
+    seq = write_gif(tmp_path / "seq.gif", frames, 20)
+    back = iio.imread(seq, index=None)[..., :3]
+    assert np.array_equal(back[-1][60:70, 60:70].reshape(-1, 3)[0], late)
+
+
+def test_gif_still_longer_than_one_delay_field_keeps_its_duration(tmp_path):
+    still = _frames(n=1, h=8, w=8)[0]
+    path = write_gif(tmp_path / "still.gif", [still] * 700, fps=1)  # 700 s: over 65535 cs
+    delays = [iio.immeta(path, index=k)["duration"] for k in range(len(iio.imread(path, index=None)))]
+    assert len(delays) == 2 and sum(delays) == 700_000
+    back = iio.imread(path, index=None)[..., :3]
+    assert all(np.array_equal(b, still) for b in back)
+
+
+def test_write_video_reports_progress_for_a_sequence(tmp_path):
+    seen = []
+    write_video(tmp_path / "p", _frames(n=10), 10, ["gif"], progress=seen.append)
+    assert seen == pytest.approx([k / 10 for k in range(1, 11)])
+    seen.clear()
+    write_video(tmp_path / "q", iter(_frames(n=10)), 10, ["gif"], progress=seen.append)
+    assert seen == []  # length unknown: no fractions
+
+
+def test_rendered_frames_stream_into_the_same_gif_as_a_list(tmp_path):
+    from planner.problem import Problem
+    from sim.params import RenderParams
+    from sim.render import render_frames
+
+    p = Problem(6.0, 4.0, (), 0.3, 0.05, [[1, 1], [2, 1]], [[4, 3], [5, 3]])
+    t = np.linspace(0.0, 4.0, 241)
+    pos = p.start[None] + (t / 4.0)[:, None, None] * (p.target - p.start)[None]
+    fr = render_frames(p, t, pos, [], RenderParams(fps=10, size=160, video_seconds=4.0))
+    a = write_gif(tmp_path / "a.gif", fr, 10)
+    b = write_gif(tmp_path / "b.gif", list(fr), 10, colours=fr.colours)
+    assert a.read_bytes() == b.read_bytes()

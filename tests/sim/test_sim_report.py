@@ -45,9 +45,9 @@ _WALL_CLOCK = {"wall_time_s", "realtime_factor", "planning_time_s"}
 
 
 def _strip(value):
-    """The report without its wall-clock times (the only numbers a run may not repeat)."""
+    """The report without its wall-clock times (the only numbers a run may not repeat) and its page's path."""
     if isinstance(value, dict):
-        return {k: _strip(v) for k, v in value.items() if k not in _WALL_CLOCK}
+        return {k: _strip(v) for k, v in value.items() if k not in _WALL_CLOCK and k != "page"}
     if isinstance(value, list):
         return [_strip(v) for v in value]
     return value
