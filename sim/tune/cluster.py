@@ -28,7 +28,7 @@ from collections import deque
 from collections.abc import Callable
 
 from .driver import TIMEOUT, WORKER_DIED
-from .spec import RunSpec, TuneError, _one_line, failure_row, run_one
+from .spec import RunSpec, TuneError, failure_row, one_line, run_one
 
 __all__ = ["ClusterLostError", "close", "connect", "run_cluster"]
 
@@ -54,7 +54,7 @@ def connect(address: str):
             client = Client(address, timeout=_CONNECT_TIMEOUT_S)
         except Exception as exc:  # noqa: BLE001 - any failure to connect is bad input
             raise TuneError(f"--scheduler: cannot connect to {address}: "
-                            f"{type(exc).__name__}: {_one_line(exc)}") from None
+                            f"{type(exc).__name__}: {one_line(exc)}") from None
         try:
             client.wait_for_workers(1, timeout=_WORKERS_TIMEOUT_S)
         except Exception:  # noqa: BLE001 - a timeout, or the scheduler went away meanwhile
@@ -81,7 +81,7 @@ def run_cluster(todo: list[RunSpec], client, window: int | None, state, limit: C
         try:
             threads = dict(client.nthreads())
         except Exception as exc:  # noqa: BLE001
-            raise ClusterLostError(_one_line(exc)) from None
+            raise ClusterLostError(one_line(exc)) from None
         arrived: queue.Queue = queue.Queue()
         pending = deque(todo)
         running: dict = {}  # future -> (spec, submitted, deadline)
@@ -110,7 +110,7 @@ def run_cluster(todo: list[RunSpec], client, window: int | None, state, limit: C
             try:
                 row = fut.result()
             except KilledWorker as exc:
-                state.record(failure_row(spec, WORKER_DIED, f"Dask workers died running it: {_one_line(exc)}",
+                state.record(failure_row(spec, WORKER_DIED, f"Dask workers died running it: {one_line(exc)}",
                                          wall_time_s=time.monotonic() - submitted))
                 continue
             except Exception as exc:  # noqa: BLE001 - the cluster, not the run (run_one never raises)
@@ -118,7 +118,7 @@ def run_cluster(todo: list[RunSpec], client, window: int | None, state, limit: C
                     for f in running:
                         f.cancel()
                     raise ClusterLostError(_lost_reason(exc)) from None
-                state.not_done.append((spec, f"{type(exc).__name__}: {_one_line(exc)}"))
+                state.not_done.append((spec, f"{type(exc).__name__}: {one_line(exc)}"))
                 continue
             state.record(row)
 
@@ -132,7 +132,7 @@ def _submit(client, spec: RunSpec, banned: set[str]):
         try:
             allowed = [w for w in client.nthreads() if w not in banned]
         except Exception as exc:  # noqa: BLE001
-            raise ClusterLostError(_one_line(exc)) from None
+            raise ClusterLostError(one_line(exc)) from None
     # pure=False and a fresh key: every run is computed, never taken from the cluster's cache
     return client.submit(_run_on_worker, spec, pure=False, key=f"swarmform-tune-{uuid.uuid4().hex}",
                          workers=allowed)
@@ -151,7 +151,7 @@ def _expire(client, running: dict, pending: deque, banned: set[str], state, limi
     try:
         where = {key: w for w, keys in client.processing().items() for key in keys}
     except Exception as exc:  # noqa: BLE001
-        raise ClusterLostError(_one_line(exc)) from None
+        raise ClusterLostError(one_line(exc)) from None
     for fut in late:
         spec, submitted, _ = running.pop(fut)
         worker = where.get(fut.key)
@@ -176,7 +176,7 @@ def _lost(client, exc: BaseException) -> bool:
 def _lost_reason(exc: BaseException) -> str:
     if "scheduler-connection-lost" in str(exc):
         return "the connection to it was lost"
-    return f"{type(exc).__name__}: {_one_line(exc)}"[:100]
+    return f"{type(exc).__name__}: {one_line(exc)}"[:100]
 
 
 def _run_on_worker(spec: RunSpec) -> dict:

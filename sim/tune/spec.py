@@ -164,7 +164,7 @@ def run_one(spec: RunSpec) -> dict:
         except NoPlanFound as exc:
             row.update(_stats_fields(exc.stats))
             row["found"] = False
-            row["error_type"], row["error"] = "NoPlanFound", _one_line(exc)
+            row["error_type"], row["error"] = "NoPlanFound", one_line(exc)
         else:
             row.update(_stats_fields(stats))
             if spec.simulate:
@@ -177,7 +177,7 @@ def run_one(spec: RunSpec) -> dict:
                 row["sim_min_clearance"] = _num(sim.min_clearance)
                 row["sim_max_tracking_error"] = _num(sim.max_tracking_error)
     except Exception as exc:  # noqa: BLE001 - a failing run is a row, not the end of the sweep
-        row["error_type"], row["error"] = type(exc).__name__, _one_line(exc)
+        row["error_type"], row["error"] = type(exc).__name__, one_line(exc)
     row["wall_time_s"] = time.perf_counter() - t0
     return row
 
@@ -211,7 +211,8 @@ def _num(v) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def _one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
+    """An exception's text on one line (its type's name when it has none)."""
     return " ".join(str(exc).split()) or type(exc).__name__
 
 

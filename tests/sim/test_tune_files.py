@@ -183,3 +183,17 @@ def test_a_file_of_the_previous_format_resumes(tmp_path, capsys):
     code, out, _ = _tune(["-o", path, "--seeds", "3"], capsys)
     assert code == 0 and "1 runs computed" in out
     assert path.read_bytes().startswith(before) and len(read_results(path)) == 3
+
+
+def test_a_link_that_appears_after_the_check_is_still_refused(tmp_path, monkeypatch):
+    """The open itself refuses a link (O_NOFOLLOW), for a link put in place between check and open."""
+    import sim.tune.results as results
+
+    target = tmp_path / "real.jsonl"
+    target.write_bytes(b"")
+    link = tmp_path / "link.jsonl"
+    link.symlink_to(target)
+    monkeypatch.setattr(results, "check_output", lambda path: path)
+    with pytest.raises(TuneError, match="symbolic link"):
+        results.ResultsFile(link, log=None)
+    assert target.read_bytes() == b""

@@ -90,6 +90,8 @@ def test_a_hung_run_on_the_cluster_is_a_timeout_and_the_rest_complete(tmp_path, 
     monkeypatch.setattr(tune_spec, "plan", plan)
     specs = grid([read_scenario(FIG2)], g=[1, 2], q=[20], seeds=[0, 1, 2], time_limit=1.0)
     path = tmp_path / "results.jsonl"
+    guard = threading.Timer(30, release.set)  # without a watchdog the sweep would wait for this
+    guard.start()
     try:
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                       dashboard_address=None) as cluster:
@@ -100,6 +102,7 @@ def test_a_hung_run_on_the_cluster_is_a_timeout_and_the_rest_complete(tmp_path, 
             release.set()
     finally:
         release.set()
+        guard.cancel()
     rows = read_results(path)
     assert len(rows) == 6 and result.complete and wall < 30
     (hung,) = [r for r in rows if r["error_type"] is not None]
