@@ -481,3 +481,17 @@ def test_help_lists_the_options(capsys):
     for option in ("--g", "--q", "--auto", "--seeds", "--seed-start", "--workers", "--scheduler",
                    "--time-limit", "--simulate", "--paper", "--summarize", "--output"):
         assert option in out
+
+
+def test_progress_bar_on_request_and_none_on_a_pipe(tmp_path):
+    """tqdm draws the bar when asked (or on a terminal); a log that is not a terminal gets status lines only."""
+    import io
+
+    specs = grid([read_scenario(FIG2)], g=[1], q=[20], seeds=[0, 1])
+    shown = io.StringIO()
+    sweep(specs, tmp_path / "a.jsonl", workers=1, progress=True, log=shown)
+    assert "tune: 100%" in shown.getvalue() and "2/2" in shown.getvalue()
+    quiet = io.StringIO()
+    sweep(specs, tmp_path / "b.jsonl", workers=1, log=quiet)
+    assert quiet.getvalue().splitlines() == [f"swarmform tune: 2 runs to compute on 1 worker process, "
+                                             f"0 already in {tmp_path / 'b.jsonl'}"]
