@@ -107,6 +107,7 @@ def _cmd_plan(args) -> int:
 
 
 def _cmd_run(args) -> int:
+    from .overrides import combinations, parse_set
     from .runner import run_scenario
 
     result = run_scenario(
@@ -116,6 +117,7 @@ def _cmd_run(args) -> int:
         render=not args.no_render,
         plan_path=args.plan,
         time_limit=args.time_limit,
+        overrides=combinations([parse_set(text, many=False) for text in args.set])[0],
     )
     verdict = "ok" if result.exit_code == 0 else "FAILED"
     print(f"  {verdict}: {_verdict_reason(result.report)}")
@@ -185,6 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-render", action="store_true", help="skip the video")
     r.add_argument("--plan", help="execute this plan JSON as it is instead of planning")
     r.add_argument("--time-limit", type=seconds, help="override planner.time_limit [s]")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="set a scenario field (dotted path, YAML scalar), e.g. --set robots.margin=0.2; repeatable")
     r.set_defaults(func=_cmd_run)
 
     from .tune import add_tune_parser

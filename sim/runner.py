@@ -90,15 +90,17 @@ def run_scenario(
     time_limit: float | None = None,
     progress: bool | None = None,
     out=sys.stdout,
+    overrides: dict | None = None,
 ) -> RunResult:
     """Plan or load, validate, execute, render and write ``DIR/NAME.json``.
 
     With ``plan_path`` the plan is executed as it is, even when the exact
     validator finds it below the margin (that is how a regression test
     proves a collision is seen); its recorded seed rebuilds the same
-    problem unless ``seed`` is given.
+    problem unless ``seed`` is given.  ``overrides`` set scenario fields
+    (``{"robots.margin": 0.2}``, as ``--set``).
     """
-    scenario = read_scenario(path)
+    scenario = read_scenario(path, overrides=overrides)
     loaded = None
     if plan_path is not None:
         loaded, recorded = _load_plan(str(plan_path))
@@ -113,6 +115,8 @@ def run_scenario(
 
     report: dict = {"scenario": name, "seed": seed, "robots": problem.m, "radius": problem.radius,
                     "margin": problem.margin, "scenario_file": str(path)}
+    if overrides:
+        report["settings"] = dict(overrides)  # the --set values the scenario was read with
     if loaded is not None:
         result, stats = _check_loaded(loaded, problem, scenario, str(plan_path))
         report["plan_file"] = str(plan_path)

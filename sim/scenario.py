@@ -225,8 +225,23 @@ _TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
 
-def read_scenario(path: str | Path) -> Scenario:
-    """Parse and check a scenario file; raise :class:`ScenarioError` when it is wrong."""
+def read_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
+    """Parse and check a scenario file; raise :class:`ScenarioError` when it is wrong.
+
+    ``overrides`` (``{"robots.margin": 0.2}``, see :mod:`sim.overrides`) are set in the
+    YAML document before it is checked; an error they cause names their ``--set`` option.
+    """
+    if not overrides:
+        return _read_scenario(path, None)
+    from .overrides import blame
+
+    try:
+        return _read_scenario(path, overrides)
+    except ScenarioError as exc:
+        raise blame(exc, overrides) from None
+
+
+def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
     path = Path(path)
     r = _Reader(str(path))
     try:
@@ -248,6 +263,10 @@ def read_scenario(path: str | Path) -> Scenario:
         r.fail("file", "is empty; expected a mapping with at least start and target")
     if not isinstance(doc, dict):
         r.fail("file", f"must hold a mapping with at least start and target, got {_kind(doc)}")
+    if overrides:
+        from .overrides import apply_overrides
+
+        doc = apply_overrides(doc, overrides)
     doc = r.mapping(doc, "", _TOP)
     for key in ("start", "target"):
         if key not in doc:

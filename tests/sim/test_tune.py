@@ -3,9 +3,9 @@
 The sweeps use two fast scenarios (a paper figure and a Table II row, about
 0.1 s a run at q = 20 or 40).  One module fixture runs the reference sweep,
 2 scenarios x g {1, 2} x q {20, 40} x seeds {0, 1, 2} on 2 worker processes
-through the command line; other tests compare against its rows.  The test
-with a Dask LocalCluster runs last, because its threads outlive it and the
-local pools fork.
+through the command line; other tests compare against its rows.  The tests of
+files refused by -o, watchdogs, robustness sweeps and Dask clusters are in
+the test_tune_*.py files beside this one.
 """
 
 from __future__ import annotations
@@ -24,9 +24,11 @@ from pathlib import Path
 import pytest
 
 import sim.tune as tune
+import sim.tune.spec as tune_spec
 from planner import NoPlanFound, PlanStats
 from sim.cli import main
 from sim.scenario import read_scenario
+from sim.tune.results import row_key
 from sim.tune import VOLATILE_FIELDS, grid, paper_table, read_results, summarize, sweep
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -62,7 +64,7 @@ def _stable(rows) -> list[tuple]:
 
 
 def _keys(rows) -> list[tuple]:
-    return [tuple(r[k] for k in tune.KEY_FIELDS) for r in rows]
+    return [row_key(r) for r in rows]
 
 
 @pytest.fixture(scope="module")
@@ -255,24 +257,29 @@ def test_torn_last_line_is_cut_on_start(reference, tmp_path):
     assert _stable(read_results(path)) == _stable(read_results(reference["path"]))
 
 
-def test_lines_that_are_not_rows_are_ignored(reference, tmp_path, capsys):
+def test_a_results_file_with_lines_that_are_not_rows_is_refused(reference, tmp_path, capsys):
+    """read_results skips lines that are not rows; a sweep refuses to append to such a file."""
     path = tmp_path / "results.jsonl"
     good = _lines(reference["path"])
     path.write_bytes(good[0] + b"not json\n" + b'{"scenario": 1}\n' + b"".join(good[1:]))
+    before = path.read_bytes()
     assert len(read_results(path)) == 24
-    assert sweep(_specs(), path, workers=1).computed == 0
-    assert "ignored 2 line(s)" in capsys.readouterr().err
+    with pytest.raises(tune.TuneError, match="line 2 is not a result row"):
+        sweep(_specs(), path, workers=1)
+    code, _, err = _cli(["tune", FIG2, ROW06, *GRID, "-o", path], capsys)
+    assert code == 2 and len(err.splitlines()) == 1 and "not a results file" in err
+    assert path.read_bytes() == before
 
 
 def test_a_run_that_raises_is_a_failure_row(tmp_path, monkeypatch):
-    real_plan = tune.plan
+    real_plan = tune_spec.plan
 
     def flaky_plan(problem, params, rng):
         if params.q == 40:
             raise RuntimeError("boom\nsecond line")
         return real_plan(problem, params, rng)
 
-    monkeypatch.setattr(tune, "plan", flaky_plan)
+    monkeypatch.setattr(tune_spec, "plan", flaky_plan)
     path = tmp_path / "results.jsonl"
     specs = grid([read_scenario(FIG2)], g=[1], q=[20, 40], seeds=[0, 1])
     result = sweep(specs, path, workers=1)
@@ -282,7 +289,7 @@ def test_a_run_that_raises_is_a_failure_row(tmp_path, monkeypatch):
         assert rows[(20, seed)]["found"] is True and rows[(20, seed)]["error"] is None
         bad = rows[(40, seed)]
         assert bad["found"] is False and bad["error_type"] == "RuntimeError" and bad["error"] == "boom second line"
-    assert "raised in 2 run(s): RuntimeError: boom second line" in summarize(read_results(path))
+    assert "error in 2 run(s): RuntimeError: boom second line" in summarize(read_results(path))
 
 
 def test_a_scenario_that_fails_to_build_does_not_stop_the_sweep(tmp_path, capsys):
@@ -307,7 +314,7 @@ def test_no_plan_within_the_limits_is_recorded(tmp_path, monkeypatch):
         stats = PlanStats(planning_time_s=0.25, g=params.g, q=params.q, graphs=1, connections=0)
         raise NoPlanFound("start and target did not connect within 1 graphs", stats)
 
-    monkeypatch.setattr(tune, "plan", no_plan)
+    monkeypatch.setattr(tune_spec, "plan", no_plan)
     path = tmp_path / "results.jsonl"
     result = sweep(grid([read_scenario(FIG2)], g=[1], q=[1], seeds=[1]), path, workers=1)
     row = read_results(path)[0]
@@ -318,8 +325,11 @@ def test_no_plan_within_the_limits_is_recorded(tmp_path, monkeypatch):
     assert "| 1 | 1 | 1 | 0% (0/1) | - | - | 0 |" in summarize([row])
 
 
-def test_a_killed_worker_loses_no_finished_row(tmp_path):
-    """SIGKILL one pool worker mid-sweep: the pool is replaced and every run gets one row."""
+def test_a_killed_worker_is_replaced_and_the_rest_complete(tmp_path):
+    """SIGKILL one pool worker mid-sweep: it is replaced, and every run gets one row.
+
+    The run it held (if it held one) is a WorkerDied row naming the signal.
+    """
     path = tmp_path / "results.jsonl"
     specs = grid([read_scenario(FIG2)], g=[1, 2], q=[20, 40], seeds=range(6))
     killed = []
@@ -339,10 +349,15 @@ def test_a_killed_worker_loses_no_finished_row(tmp_path):
     killer.start()
     result = sweep(specs, path, workers=2)
     killer.join()
-    assert killed and result.pool_restarts >= 1
+    assert killed and result.workers_replaced >= 1
     assert result.complete and result.computed == 24
     rows = read_results(path)
     assert len(rows) == 24 and len(set(_keys(rows))) == 24
+    died = [r for r in rows if r["error_type"] == tune.WORKER_DIED]
+    assert len(died) <= 1 and all("SIGKILL" in r["error"] for r in died)
+    assert result.worker_died == len(died)
+    assert sum(r["found"] for r in rows) == 24 - len(died)
+    assert not multiprocessing.active_children()
 
 
 # ----------------------------------------------------------------------------
@@ -460,18 +475,6 @@ def test_bad_input_exits_2_with_one_line(argv, names, tmp_path, capsys):
     assert not list(tmp_path.glob("*.png")) and not (tmp_path / "results.md").exists()
 
 
-def test_unreachable_scheduler_is_bad_input(tmp_path, capsys):
-    pytest.importorskip("distributed")
-    path = tmp_path / "results.jsonl"
-    tune_timeout, tune._DASK_CONNECT_TIMEOUT_S = tune._DASK_CONNECT_TIMEOUT_S, 0.5
-    try:
-        code, _, err = _cli(["tune", FIG2, "--seeds", "1", "--scheduler", "tcp://127.0.0.1:9", "-o", path], capsys)
-    finally:
-        tune._DASK_CONNECT_TIMEOUT_S = tune_timeout
-    assert code == 2 and "--scheduler" in err and len(err.splitlines()) == 1
-    assert not path.exists()
-
-
 def test_help_lists_the_options(capsys):
     code, out, _ = _cli(["tune", "--help"], capsys)
     assert code == 0
@@ -480,15 +483,15 @@ def test_help_lists_the_options(capsys):
         assert option in out
 
 
-# ----------------------------------------------------------------------------
-# a Dask cluster (last: its threads outlive it)
+def test_progress_bar_on_request_and_none_on_a_pipe(tmp_path):
+    """tqdm draws the bar when asked (or on a terminal); a log that is not a terminal gets status lines only."""
+    import io
 
-
-def test_dask_cluster_gives_the_rows_of_the_local_pool(reference, tmp_path):
-    distributed = pytest.importorskip("distributed")
-    path = tmp_path / "results.jsonl"
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster:
-        result = sweep(_specs(), path, scheduler=cluster.scheduler_address)
-    assert result.computed == 24 and result.complete
-    assert _stable(read_results(path)) == _stable(read_results(reference["path"]))
+    specs = grid([read_scenario(FIG2)], g=[1], q=[20], seeds=[0, 1])
+    shown = io.StringIO()
+    sweep(specs, tmp_path / "a.jsonl", workers=1, progress=True, log=shown)
+    assert "tune: 100%" in shown.getvalue() and "2/2" in shown.getvalue()
+    quiet = io.StringIO()
+    sweep(specs, tmp_path / "b.jsonl", workers=1, log=quiet)
+    assert quiet.getvalue().splitlines() == [f"swarmform tune: 2 runs to compute on 1 worker process, "
+                                             f"0 already in {tmp_path / 'b.jsonl'}"]
