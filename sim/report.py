@@ -68,7 +68,7 @@ def verdict(report: dict) -> tuple[bool, str]:
         where = f", the first {_describe_contact(first)}" if first else ""
         reasons.append(f"{n} contact{'s' if n != 1 else ''} in the physics run{where}")
     if sim and sim.get("reached") is False:
-        got = sim.get("reached_robots")
+        got = _count(sim.get("reached_robots"))
         m = report.get("robots")
         count = f" ({got} of {m} did)" if got is not None and m is not None else ""
         reasons.append(f"not every robot reached a target{count}")
@@ -171,6 +171,13 @@ def run_page(path: str | Path, report: dict, problem, plan=None, sim=None, media
 # tables
 
 
+def _count(v) -> int | None:
+    """How many robots reached: ``reached_robots`` is a list of flags per robot (or a count)."""
+    if isinstance(v, list):
+        return sum(bool(x) for x in v)
+    return v if isinstance(v, int) else None
+
+
 def _num(v, digits: int = 4) -> str:
     if v is None or isinstance(v, bool):
         return "n/a" if v is None else ("yes" if v else "no")
@@ -243,7 +250,7 @@ def _sim_rows(report: dict) -> list[tuple[str, str, str]]:
                  f"at t = {_num(when)} s" if when is not None else ""))
     reached = _num(s.get("reached"))
     if s.get("reached_robots") is not None and m is not None:
-        reached += f" ({s['reached_robots']} of {m} robots)"
+        reached += f" ({_count(s['reached_robots'])} of {m} robots)"
     rows.append(("every robot on a target", reached, f"worst final distance {_num(s.get('final_error'))}"))
     rows.append(("simulated", f"{_num(s.get('sim_time_s'))} s",
                  f"in {_num(s.get('wall_time_s'), 3)} s wall-clock time"))

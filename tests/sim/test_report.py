@@ -128,6 +128,8 @@ def test_verdict_names_what_went_wrong():
     assert "1 contact in" in verdict(one)[1]
     missed = _report(contacts=0, contact_list=[], reached=False, reached_robots=1)
     assert "not every robot reached a target (1 of 2 did)" in verdict(missed)[1]
+    flags = _report(contacts=0, contact_list=[], reached=False, reached_robots=[True, False])  # as the physics run writes it
+    assert "not every robot reached a target (1 of 2 did)" in verdict(flags)[1]
     below = _report(contacts=0, contact_list=[])
     below["plan"]["valid"] = False
     assert "closer than the margin" in verdict(below)[1]
