@@ -227,6 +227,7 @@ def render_frames(
     *,
     step_times: np.ndarray | None = None,
     title: str = "",
+    targets: Sequence[tuple[float, np.ndarray]] | None = None,
 ) -> Iterator[np.ndarray]:
     """Video frames ``(H, W, 3) uint8`` (H and W even) of a recorded run.
 
@@ -248,6 +249,10 @@ def render_frames(
         header then names the active step ``k`` (``step_times[k] <= t <
         step_times[k + 1]``, 0-based like the validator's messages).
     title: first header line.
+    targets: for chained targets, ``(start time [s], placement (m, 2))``
+        of each leg in time order; a frame marks the placement of the leg
+        under way (the first one's before its start time) and the header
+        names the leg.  Default: ``problem.target`` throughout.
 
     The arguments are checked at once; frames are drawn lazily, one per
     ``next()``.  Each yielded array is a fresh copy.
@@ -271,9 +276,15 @@ def render_frames(
         steps = np.asarray(step_times, float).reshape(-1)
         if len(steps) < 1 or np.any(np.diff(steps) < 0):
             raise ValueError("step_times must be a non-empty, non-decreasing (K + 1,) array")
+    legs = None
+    if targets is not None:
+        legs = [(float(t0), np.asarray(p, float).reshape(-1, 2)) for t0, p in targets]
+        if not legs or any(p.shape != (problem.m, 2) for _, p in legs) or any(
+                b[0] < a[0] for a, b in zip(legs, legs[1:])):
+            raise ValueError("targets must be (time, (m, 2) placement) pairs in time order")
     contact_rows = _contact_table(problem, contacts, t, pos)
     speedup = playback_speedup(t[-1] - t[0], params)
-    return _frames(problem, t, pos, contact_rows, params, speedup, steps, str(title))
+    return _frames(problem, t, pos, contact_rows, params, speedup, steps, str(title), legs)
 
 
 class _Contacts:
@@ -390,7 +401,20 @@ def _fit_text(font: pygame.font.Font, text: str, width: int) -> str:
     return text + "..." if text else ""
 
 
-def _frames(problem, t, pos, contacts: _Contacts, params, speedup, steps, title):
+def _target_layer(cv: Canvas, base: pygame.Surface, target: np.ndarray, r: int) -> pygame.Surface:
+    """``base`` with the target markers (a ring and a cross at every target) drawn on a copy."""
+    layer = base.copy()
+    ring = max(1, r // 5)
+    for c in cv.to_px(target):
+        pygame.draw.circle(layer, TARGET_MARK, (float(c[0]), float(c[1])), r, width=ring)
+        if r >= 4:
+            h = max(2, r // 3)
+            pygame.draw.line(layer, TARGET_MARK, (c[0] - h, c[1]), (c[0] + h, c[1]))
+            pygame.draw.line(layer, TARGET_MARK, (c[0], c[1] - h), (c[0], c[1] + h))
+    return layer
+
+
+def _frames(problem, t, pos, contacts: _Contacts, params, speedup, steps, title, legs=None):
     cv = Canvas(problem, params.size)
     fps = int(params.fps)
     t0 = float(t[0])
@@ -404,15 +428,10 @@ def _frames(problem, t, pos, contacts: _Contacts, params, speedup, steps, title)
     colors = robot_colors(m)
     tints = [_tint(c) for c in colors]
 
-    # static layer: background, walls, obstacles, target markers
-    static = cv.background.copy()
-    ring = max(1, r // 5)
-    for c in cv.to_px(problem.target):
-        pygame.draw.circle(static, TARGET_MARK, (float(c[0]), float(c[1])), r, width=ring)
-        if r >= 4:
-            h = max(2, r // 3)
-            pygame.draw.line(static, TARGET_MARK, (c[0] - h, c[1]), (c[0] + h, c[1]))
-            pygame.draw.line(static, TARGET_MARK, (c[0], c[1] - h), (c[0], c[1] + h))
+    # static layer: background, walls, obstacles, target markers (one per leg)
+    legs = legs or [(float(t0), problem.target)]
+    statics = [_target_layer(cv, cv.background, target, r) for _, target in legs]
+    leg_starts = np.array([t0 for t0, _ in legs])
 
     # trails: positions on a uniform grid, in pixels
     trail_len = max(_TRAIL_FRACTION * duration, _TRAIL_MIN_SECONDS)
@@ -438,8 +457,9 @@ def _frames(problem, t, pos, contacts: _Contacts, params, speedup, steps, title)
     title_img = font.render(
         _fit_text(font, title, right_x - left_x - speed_img.get_width() - 12), True, TEXT, BACKGROUND
     )
-    static.blit(title_img, (left_x, 2))
-    static.blit(speed_img, (right_x - speed_img.get_width(), 2))
+    for layer in statics:
+        layer.blit(title_img, (left_x, 2))
+        layer.blit(speed_img, (right_x - speed_img.get_width(), 2))
 
     flash = _FLASH_SECONDS * speedup
     hot_ring = max(2, r // 3)
@@ -449,7 +469,8 @@ def _frames(problem, t, pos, contacts: _Contacts, params, speedup, steps, title)
     frame = None
     for k in range(n_drawn):
         now = float(ft[k])
-        surf.blit(static, (0, 0))
+        leg = max(0, int(np.searchsorted(leg_starts, t0 + now, side="right")) - 1)
+        surf.blit(statics[leg], (0, 0))
         cur = frame_px[k]
 
         if trail_px is not None:
@@ -496,6 +517,8 @@ def _frames(problem, t, pos, contacts: _Contacts, params, speedup, steps, title)
                 status += f"   step {k_step}/{K}"
             else:
                 status += f"   step -/{K} (settling)" if K > 0 else "   no steps"
+        if len(legs) > 1:
+            status += f"   target {leg + 1}/{len(legs)}"
         surf.blit(font.render(status, True, TEXT, BACKGROUND), (left_x, 2 + line_h))
         if i1 > 0:
             img = font.render(f"CONTACTS: {contacts.seen[i1 - 1]}", True, CONTACT, BACKGROUND)

@@ -16,14 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from planner import NoPlanFound, Plan, PlanStats, min_clearance, plan
+from planner import NoPlanFound, Plan, PlanStats, min_clearance
 from planner.bounds import lower_bounds
 
 from .execute import SimReport, execute
+from .legs import plan_legs
 from .media import atomic_path, has_mp4, write_video
 from .progress import ProgressBar
 from .render import render_frames
-from .scenario import Scenario, build_problem, read_scenario
+from .scenario import Scenario, build_legs, read_scenario
 
 __all__ = ["InputError", "RunResult", "plan_summary", "run_scenario", "sim_summary"]
 
@@ -50,6 +51,8 @@ def plan_summary(stats: PlanStats, *, valid: bool | None = None) -> dict:
     out = {k: d.get(k) for k in keys}
     if valid is not None:
         out["valid"] = valid
+    if "legs" in stats.extra:
+        out["legs"] = stats.extra["legs"]
     return out
 
 
@@ -92,7 +95,8 @@ def run_scenario(
         seed = recorded if seed is None else seed
     seed = scenario.seed if seed is None else seed
     rng = np.random.default_rng(seed)
-    problem = build_problem(scenario, rng)
+    problem, targets = build_legs(scenario, rng)
+    leg_times = None
     out_dir = Path(out_dir)
     name = scenario.name
     say = (lambda *a: print(*a, file=out)) if out is not None else (lambda *a: None)
@@ -105,7 +109,9 @@ def run_scenario(
     else:
         params = scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
         try:
-            result, stats = plan(problem, params, rng)
+            result, stats, leg_times = plan_legs(problem, targets, params, rng,
+                                                 holds=[t.hold for t in scenario.legs],
+                                                 labels=[t.describe() for t in scenario.legs])
         except NoPlanFound as exc:
             report["plan"] = plan_summary(exc.stats)
             report["plan"]["error"] = str(exc)
@@ -131,8 +137,9 @@ def run_scenario(
     if render and "mp4" in scenario.render.formats and not has_mp4():
         say("  (no MP4: install imageio-ffmpeg, e.g. pip install -e '.[video]')")
     if render:
+        legs = None if leg_times is None or len(targets) < 2 else list(zip(leg_times[:-1], targets))
         frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
-                               step_times=result.times, title=name)
+                               step_times=result.times, title=name, targets=legs)
         media = write_video(out_dir / name, frames, scenario.render.fps, scenario.render.formats)
         for m in media:
             say(f"  wrote {m}")
