@@ -21,6 +21,7 @@ skeletons of rendered text.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -32,6 +33,7 @@ __all__ = [
     "CORNER_DEGREES",
     "MAX_POINTS",
     "MAX_STROKES",
+    "MAX_TOTAL",
     "Stroke",
     "check_polylines",
     "count_at_spacing",
@@ -46,9 +48,9 @@ __all__ = [
 #: Open polylines are split where they turn by more than this [degrees].
 CORNER_DEGREES = 40.0
 #: Bounds of a drawing given as plain polylines.
-MAX_STROKES = 256
-MAX_POINTS = 4096  # per stroke
-_MAX_TOTAL = 16384  # points over all strokes
+MAX_STROKES = 64
+MAX_POINTS = 512  # per stroke
+MAX_TOTAL = 1024  # points over all strokes
 
 # Two robots of different strokes closer than this fraction of the spacing
 # along the strokes crowd each other (crossing strokes, acute junctions).
@@ -56,8 +58,8 @@ _CROWDED = 0.5
 # Safety factor on the separation when a shape is enlarged, so that a
 # formation is never on the edge of overlapping because of rounding.
 SPACING_SLACK = 1.02
-_ROUNDS = 64  # spreads at most to make up for crowded robots
-_BISECT = 8  # bisection steps on the gap when the wanted one does not fit
+_ROUNDS = 24  # spreads at most to make up for crowded robots
+_BISECT = 5  # bisection steps on the gap when the wanted one does not fit
 _ON = 1e-9  # relative tolerance of "lies on" tests (of the drawing's size)
 
 
@@ -76,7 +78,7 @@ class Stroke:
     start_free: bool = True
     end_free: bool = True
 
-    @property
+    @cached_property
     def length(self) -> float:
         if self.arc is not None:
             _, _, r, t0, t1 = self.arc
@@ -146,7 +148,7 @@ def check_polylines(polylines, field: str = "strokes") -> tuple[np.ndarray, ...]
 
     Raises ``ValueError`` (``"FIELD[i]: reason"``) unless there are 1 to
     :data:`MAX_STROKES` strokes of 2 to :data:`MAX_POINTS` finite points each
-    (at most 16384 in all) with some length in total.
+    (at most :data:`MAX_TOTAL` in all) with some length in total.
     """
     if not isinstance(polylines, (list, tuple)) or not 1 <= len(polylines) <= MAX_STROKES:
         n = len(polylines) if isinstance(polylines, (list, tuple)) else "no"
@@ -162,8 +164,8 @@ def check_polylines(polylines, field: str = "strokes") -> tuple[np.ndarray, ...]
         if not np.all(np.isfinite(p)):
             raise ValueError(f"{field}[{i}]: holds a non-finite coordinate")
         total += len(p)
-        if total > _MAX_TOTAL:
-            raise ValueError(f"{field}: more than {_MAX_TOTAL} points in all")
+        if total > MAX_TOTAL:
+            raise ValueError(f"{field}: more than {MAX_TOTAL} points in all")
         out.append(p)
     if sum(stroke_length(p) for p in out) <= 0:
         raise ValueError(f"{field}: every stroke has zero length; draw at least one line")
@@ -221,29 +223,48 @@ def _mark_junctions(strokes: list[Stroke]) -> tuple[Stroke, ...]:
     """Exclude the ends that lie on an earlier stroke or inside a later one."""
     if not strokes:
         return ()
-    ends = [s.ends for s in strokes]
-    allpts = np.concatenate([e for e in ends])
-    tol = _ON * max(float(np.ptp(allpts, axis=0).max()), 1.0)
+    n = len(strokes)
+    ends = np.stack([s.ends for s in strokes]).reshape(-1, 2)  # end 2j, 2j + 1 of stroke j
+    tol = _ON * max(float(np.ptp(ends, axis=0).max()), 1.0)
+    owner = np.repeat(np.arange(n), 2)
+    taken = np.zeros(2 * n, bool)
+    for i, other in enumerate(strokes):
+        # only the ends inside this stroke's bounding box can lie on it
+        box = _box(other)
+        near = np.flatnonzero(np.all((ends >= box[0] - tol) & (ends <= box[1] + tol), axis=1) & (owner != i))
+        near = near[~taken[near]]
+        if not len(near):
+            continue
+        on = other.distance(ends[near]) <= tol
+        if not on.any():
+            continue
+        near = near[on]
+        if other.closed:
+            at_end = np.zeros(len(near), bool)
+        else:
+            e = other.ends
+            at_end = np.minimum(np.linalg.norm(ends[near] - e[0], axis=1),
+                                np.linalg.norm(ends[near] - e[1], axis=1)) <= tol
+        taken[near[(owner[near] > i) | ~at_end]] = True
     out = []
     for j, st in enumerate(strokes):
         if st.closed:
             out.append(st)
             continue
-        free = []
-        for e in ends[j]:
-            taken = False
-            for i, other in enumerate(strokes):
-                if i == j or other.distance(e[None])[0] > tol:
-                    continue
-                at_end = (not other.closed) and bool(np.min(np.linalg.norm(ends[i] - e, axis=1)) <= tol)
-                if i < j or not at_end:
-                    taken = True
-                    break
-            free.append(not taken)
+        free = [not taken[2 * j], not taken[2 * j + 1]]
         if st.length == 0.0 and not free[0]:
             free[1] = False  # a dot on another stroke adds nothing
         out.append(Stroke(st.points, st.arc, st.closed, free[0], free[1]))
     return tuple(out)
+
+
+def _box(st: Stroke) -> np.ndarray:
+    """``[[xmin, ymin], [xmax, ymax]]`` of a stroke (an arc's whole circle)."""
+    if st.arc is not None:
+        cx, cy, r, _, _ = st.arc
+        return np.array([[cx - r, cy - r], [cx + r, cy + r]])
+    p = np.asarray(st.points, float)
+    return np.stack([p.min(axis=0), p.max(axis=0)])
 
 
 def _allocate(strokes: tuple[Stroke, ...], m: int, gap: float = 0.0) -> tuple[list[int], float]:
@@ -336,7 +357,7 @@ def _spread(strokes: tuple[Stroke, ...], m: int, gap: float = 0.0) -> tuple[np.n
 def _crowded(pts: np.ndarray, owner: np.ndarray, limit: float) -> np.ndarray:
     """Indices of robots to drop so that no two of different strokes are closer than ``limit``.
 
-    Robots are kept in order (earlier strokes win).
+    Robots are kept in order (earlier strokes win): a greedy pick.
     """
     if limit <= 0 or len(pts) < 2:
         return np.zeros(0, int)
@@ -345,13 +366,12 @@ def _crowded(pts: np.ndarray, owner: np.ndarray, limit: float) -> np.ndarray:
     if not len(pairs):
         return np.zeros(0, int)
     pairs = np.sort(pairs, axis=1)
-    later = [[] for _ in range(len(pts))]
-    for i, j in pairs:
-        later[i].append(j)
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    first = np.searchsorted(pairs[:, 0], np.arange(len(pts) + 1))
     dropped = np.zeros(len(pts), bool)
-    for i in range(len(pts)):
+    for i in np.unique(pairs[:, 0]):
         if not dropped[i]:
-            dropped[later[i]] = True
+            dropped[pairs[first[i] : first[i + 1], 1]] = True
     return np.flatnonzero(dropped)
 
 
@@ -359,7 +379,7 @@ def _attempt(strokes: tuple[Stroke, ...], m: int, gap: float) -> np.ndarray | No
     """Spread robots, drop the crowded ones, spread more in their place; None if it does not settle."""
     n = m
     for _ in range(_ROUNDS):
-        if gap and _capacity(strokes, gap) < n:
+        if n > 2 * m + 64 or (gap and _capacity(strokes, gap) < n):
             return None
         pts, owner, d = _spread(strokes, n, gap)
         drop = _crowded(pts, owner, max(_CROWDED * d, gap))
@@ -397,20 +417,50 @@ def stroke_points(strokes: tuple[Stroke, ...], m: int, gap: float = 0.0) -> np.n
         pts = _attempt(strokes, m, gap)
         if pts is not None:
             return pts
-        lo, hi, best = 0.0, float(gap), None
-        for _ in range(_BISECT):
-            mid = 0.5 * (lo + hi)
-            pts = _attempt(strokes, m, mid)
-            if pts is None:
-                hi = mid
-            else:
-                lo, best = mid, pts
-        if best is not None:
-            return best
     pts = _attempt(strokes, m, 0.0)
     if pts is None:
-        raise ValueError(f"the strokes cross too often to hold {m} robots apart")
+        return _greedy(strokes, m)
+    if gap > 0:
+        lo, hi = 0.0, float(gap)
+        for _ in range(_BISECT):
+            mid = 0.5 * (lo + hi)
+            better = _attempt(strokes, m, mid)
+            if better is None:
+                hi = mid
+            else:
+                lo, pts = mid, better
     return pts
+
+
+def _greedy(strokes: tuple[Stroke, ...], m: int) -> np.ndarray:
+    """Strokes that cross everywhere: ``m`` of many points along them, as far apart as greedy picking allows.
+
+    Candidates are spread along the strokes at a fine spacing; the largest
+    spacing whose greedy pick (in stroke order) keeps ``m`` of them is found
+    by bisection, and the surplus loses its most crowded points.
+    """
+    cand, _, _ = _spread(strokes, 3 * m + 16)
+    cand = np.unique(cand, axis=0)
+    if len(cand) < m:
+        raise ValueError(f"the strokes hold fewer than {m} distinct robot positions")
+    # m points on curves of total length L are at most about L / (m - 1)
+    # apart, and m points s apart need a box of side about s (sqrt(m) - 1)
+    total = sum(s.length for s in strokes)
+    size = float(np.ptp(cand, axis=0).max())
+    lo, hi = 0.0, min(size, 2.0 * total / max(m - 1, 1), 2.0 * size / max(np.sqrt(m) - 1.0, 1.0))
+    best = cand
+    everyone = np.arange(len(cand))
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        pick = np.delete(cand, _crowded(cand, everyone, mid), axis=0)
+        if len(pick) >= m:
+            lo, best = mid, pick
+        else:
+            hi = mid
+    while len(best) > m:
+        dist, _ = cKDTree(best).query(best, k=2)
+        best = np.delete(best, int(np.argmin(dist[:, 1])), axis=0)
+    return best
 
 
 def extent(strokes: tuple[Stroke, ...]) -> float:

@@ -100,7 +100,7 @@ def run_scenario(
     out_dir = Path(out_dir)
     name = scenario.name
     say = (lambda *a: print(*a, file=out)) if out is not None else (lambda *a: None)
-    say(f"{name} (seed {seed}): {problem.m} robots, {scenario.start.describe()} -> {scenario.target.describe()}")
+    say(f"{name} (seed {seed}): {problem.m} robots, {scenario.describe()}")
 
     report: dict = {"scenario": name, "seed": seed, "robots": problem.m, "scenario_file": str(path)}
     if loaded is not None:

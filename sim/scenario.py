@@ -139,6 +139,10 @@ class Scenario:
         """The targets in the order they are reached (``target`` alone unless chained)."""
         return self.targets or (self.target,)
 
+    def describe(self) -> str:
+        """``start -> target`` (every target of a chain)."""
+        return " -> ".join(spec.describe() for spec in (self.start, *self.legs))
+
 
 # ----------------------------------------------------------------------------
 # YAML with duplicate keys rejected
