@@ -256,6 +256,14 @@ def mask_strokes(mask: np.ndarray, *, spur: float | None = None) -> list[np.ndar
     if not mask.any():
         raise ValueError("mask holds no ink")
     skel = thin(mask)
+    # thinning erases a 2 x 2 block entirely: such an ink blob keeps its
+    # pixel nearest to its centroid as a dot
+    labels, count = ndimage.label(mask, structure=np.ones((3, 3), int))
+    kept = np.unique(labels[skel])
+    for lab in sorted(set(range(1, count + 1)) - set(kept.tolist())):
+        rows, cols = np.nonzero(labels == lab)
+        k = int(np.argmin((rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2))
+        skel[rows[k], cols[k]] = True
     if spur is None:
         depth = ndimage.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1]
         spur = max(2.0, 1.5 * float(np.median(depth[skel])))

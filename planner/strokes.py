@@ -1,7 +1,8 @@
 """Strokes: robots spread along polylines (and circular arcs) by arc length.
 
 A drawing is a tuple of strokes.  A stroke is an open polyline, a closed
-polyline (its last point equals its first), or a circular arc.  Robots are
+polyline (its last point equals its first; one with sharp corners is opened
+at its first corner), or a circular arc.  Robots are
 allocated to the strokes so that the spacing along every stroke is about the
 same (:func:`_allocate`), then spread evenly along each stroke.
 
@@ -172,6 +173,20 @@ def check_polylines(polylines, field: str = "strokes") -> tuple[np.ndarray, ...]
     return tuple(out)
 
 
+def _first_corner(ring: np.ndarray) -> int | None:
+    """Index of the first sharp corner of a closed polyline (its points without the repeat), or None."""
+    keep = np.linalg.norm(ring - np.roll(ring, 1, axis=0), axis=1) > 0
+    idx = np.flatnonzero(keep)
+    q = ring[idx]
+    if len(q) < 3:
+        return None
+    a = q - np.roll(q, 1, axis=0)
+    b = np.roll(q, -1, axis=0) - q
+    cos = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+    sharp = np.flatnonzero(cos < np.cos(np.radians(CORNER_DEGREES)))
+    return int(idx[sharp[0]]) if len(sharp) else None
+
+
 def _split_at_corners(p: np.ndarray) -> list[np.ndarray]:
     """An open polyline cut at its sharp corners (duplicate points dropped first)."""
     keep = np.concatenate([[True], np.linalg.norm(np.diff(p, axis=0), axis=1) > 0])
@@ -213,8 +228,13 @@ def drawing(items) -> tuple[Stroke, ...]:
         p = np.asarray(item, float)
         size = max(float(np.ptp(p, axis=0).max()), 1.0)
         if len(p) >= 4 and np.linalg.norm(p[0] - p[-1]) <= _ON * size:
-            raw.append(Stroke(points=tuple(map(tuple, p[:-1])), closed=True))
-            continue
+            corner = _first_corner(p[:-1])
+            if corner is None:  # smooth all round: a closed stroke
+                raw.append(Stroke(points=tuple(map(tuple, p[:-1])), closed=True))
+                continue
+            # a closed outline with corners (a square): opened at a corner
+            ring = np.roll(p[:-1], -corner, axis=0)
+            p = np.vstack([ring, ring[:1]])
         raw.extend(Stroke(points=tuple(map(tuple, piece))) for piece in _split_at_corners(p))
     return _mark_junctions(raw)
 
@@ -252,6 +272,8 @@ def _mark_junctions(strokes: list[Stroke]) -> tuple[Stroke, ...]:
             out.append(st)
             continue
         free = [not taken[2 * j], not taken[2 * j + 1]]
+        if np.linalg.norm(ends[2 * j] - ends[2 * j + 1]) <= tol and st.length > 0:
+            free[1] = False  # an outline opened at its one corner ends where it starts
         if st.length == 0.0 and not free[0]:
             free[1] = False  # a dot on another stroke adds nothing
         out.append(Stroke(st.points, st.arc, st.closed, free[0], free[1]))
