@@ -16,12 +16,13 @@ import numpy as np
 
 from .geometry import Environment, greedy_separated
 from .problem import ProblemError, describe_obstacle
-from .strokes import SPACING_SLACK, Arc, drawing, scaled_shape, stroke_points
+from .strokes import SPACING_SLACK, Arc, bounds, drawing, scaled_shape, stroke_points
 
 __all__ = [
     "DEFAULT_COUNTS",
     "FORMATIONS",
     "LETTERS",
+    "formation_box",
     "formation_shape",
     "place_formation",
 ]
@@ -65,6 +66,16 @@ LETTERS: dict[str, tuple] = {
     "ring": (Arc(0.5, 0.5, 0.5, _PI / 2, _PI / 2 + 2 * _PI),),
 }
 _STROKES = {name: drawing(items) for name, items in LETTERS.items()}
+
+
+def formation_box(name: str) -> tuple[float, float]:
+    """Width and height of a named formation's bounding box, its longer side 1 (at rotation 0)."""
+    if name not in DEFAULT_COUNTS:
+        raise ValueError(f"unknown formation {name!r}")
+    if name == "random":
+        return 1.0, 1.0
+    w, h = np.ptp(bounds(_STROKES[name]), axis=0)
+    return float(w / max(w, h)), float(h / max(w, h))
 
 
 def _random_points(m: int, side: float, separation: float, rng: np.random.Generator):

@@ -12,8 +12,9 @@ the growth did not reach (free pockets cut off by obstacles); the run ends
 when a round of darts finds none: the sample is then saturated.
 
 :func:`scatter` picks the spacing for ``m`` robots: it searches ``d >=
-2 r + margin`` for a saturated sample of at least ``m`` points (as few over
-``m`` as the search finds) and drops the surplus at random.  When even the
+2 r + margin`` for a saturated sample of at least ``m`` points (at most 5 %
+over ``m``, or as few over as 8 samples find) and drops the surplus at
+random.  When even the
 densest spacing (the separation itself) saturates below ``m`` it raises
 :class:`planner.problem.ProblemError` naming the field and the count that
 saturated run reached: what this sampler achieves, an honest maximum for
@@ -38,7 +39,7 @@ __all__ = ["poisson_disc", "scatter"]
 _K = 30  # candidates per active point (Bridson's k)
 _RING = 1.1  # candidates lie between d and _RING * d from the active point
 _DARTS = 512  # random darts per gap-search round
-_RUNS = 12  # spacing search: saturated samples at most
+_RUNS = 8  # spacing search: saturated samples at most
 _MAX_POINTS = 200_000  # a region and spacing that would need more are refused
 
 
@@ -157,7 +158,7 @@ def scatter(env: Environment, m: int, separation: float, clearance: float, rng: 
             if best is None or n < len(best):
                 best = pts
             lo = d if lo is None else max(lo, d)
-            if n <= m + max(1, m // 50):
+            if n <= m + max(2, m // 20):
                 break
         else:
             if d <= separation * (1 + 1e-12):

@@ -36,6 +36,7 @@ __all__ = [
     "MAX_STROKES",
     "MAX_TOTAL",
     "Stroke",
+    "bounds",
     "check_polylines",
     "count_at_spacing",
     "drawing",
@@ -485,8 +486,8 @@ def _greedy(strokes: tuple[Stroke, ...], m: int) -> np.ndarray:
     return best
 
 
-def extent(strokes: tuple[Stroke, ...]) -> float:
-    """The longer side of the strokes' bounding box (arcs sampled every degree or finer)."""
+def bounds(strokes: tuple[Stroke, ...]) -> np.ndarray:
+    """``[[xmin, ymin], [xmax, ymax]]`` of the strokes (arcs sampled every degree or finer)."""
     pts = []
     for st in strokes:
         if st.arc is None:
@@ -495,7 +496,12 @@ def extent(strokes: tuple[Stroke, ...]) -> float:
             n = max(2, int(np.degrees(abs(st.arc[4] - st.arc[3]))) + 1)
             pts.append(st.at(np.linspace(0.0, st.length, n)))
     allpts = np.concatenate(pts)
-    return float(np.ptp(allpts, axis=0).max())
+    return np.stack([allpts.min(axis=0), allpts.max(axis=0)])
+
+
+def extent(strokes: tuple[Stroke, ...]) -> float:
+    """The longer side of the strokes' bounding box."""
+    return float(np.ptp(bounds(strokes), axis=0).max())
 
 
 def strokes_shape(strokes: tuple[Stroke, ...], m: int, side: float, separation: float) -> np.ndarray:

@@ -23,18 +23,17 @@ from functools import lru_cache
 import numpy as np
 
 from planner.area import area_points, ink_points
-from planner.formations import DEFAULT_COUNTS, formation_shape
-from planner.skeleton import mask_strokes
-from planner.strokes import SPACING_SLACK, Stroke, count_at_spacing, drawing, extent, scaled_shape, strokes_shape
-
-from .glyphs import Glyphs, render_text
+from planner.formations import DEFAULT_COUNTS, formation_box, formation_shape
+from planner.strokes import SPACING_SLACK, Stroke, bounds, count_at_spacing, drawing, extent, scaled_shape, strokes_shape
 
 __all__ = [
     "AREA_SPACING",
+    "FIT",
     "MAX_DEFAULT_COUNT",
     "STROKE_SPACING",
     "default_count",
     "formation_drawing",
+    "formation_side",
     "make_shape",
     "text_glyphs",
     "uses_rng",
@@ -49,13 +48,18 @@ MAX_DEFAULT_COUNT = 500
 
 
 @lru_cache(maxsize=32)
-def text_glyphs(text: str, font: str | None) -> Glyphs:
-    """The rendered text (cached: reading and building a scenario render it once)."""
+def text_glyphs(text: str, font: str | None):
+    """The rendered text, a :class:`sim.glyphs.Glyphs` (cached: reading and building a
+    scenario render it once; pygame is imported only for text)."""
+    from .glyphs import render_text
+
     return render_text(text, font)
 
 
 @lru_cache(maxsize=32)
 def _text_strokes(text: str, font: str | None) -> tuple[Stroke, ...]:
+    from planner.skeleton import mask_strokes
+
     return drawing(mask_strokes(text_glyphs(text, font).mask))
 
 
@@ -77,7 +81,31 @@ def _extent(points: np.ndarray) -> float:
     return max(float(np.ptp(points, axis=0).max()), 1e-12)
 
 
-def default_count(spec, width: float, height: float, separation: float) -> int | None:
+#: ``scale: fit``: the formation's box fills this fraction of the workspace
+#: (less the wall clearance) in the direction that binds
+FIT = 0.9
+
+
+def formation_side(spec, width: float, height: float, clearance: float = 0.0) -> float:
+    """The requested bounding-box side [units]: ``scale * min(W, H)``, or for ``scale: fit``
+    (``spec.scale is None``) the largest side at which the box, unrotated, fills at most
+    :data:`FIT` of the workspace's width and height less the wall clearance on both sides."""
+    if spec.scale is not None:
+        return spec.scale * min(width, height)
+    strokes = formation_drawing(spec)
+    if strokes is not None:
+        w, h = np.ptp(bounds(strokes), axis=0)
+    elif spec.text is not None:
+        w, h = np.ptp(ink_points(text_glyphs(spec.text, spec.font).mask), axis=0)
+    else:
+        w, h = formation_box(spec.formation)
+    longer = max(w, h)
+    room = [FIT * (size - 2 * clearance) / (extent / longer)
+            for size, extent in ((width, w), (height, h)) if extent > 1e-9 * longer]
+    return float(max(min(room), 1e-9))
+
+
+def default_count(spec, width: float, height: float, separation: float, clearance: float | None = None) -> int | None:
     """The robot count a spec implies when ``robots.count`` is not given, or None.
 
     Letters: the paper's Table I.  Text and strokes: as many robots as fit
@@ -91,7 +119,7 @@ def default_count(spec, width: float, height: float, separation: float) -> int |
         return len(spec.points)
     if spec.formation in DEFAULT_COUNTS:
         return DEFAULT_COUNTS[spec.formation]
-    side = spec.scale * min(width, height)
+    side = formation_side(spec, width, height, separation / 2 if clearance is None else clearance)
     strokes = formation_drawing(spec)
     if strokes is not None:
         per_unit = extent(strokes) / side  # drawing units per workspace unit

@@ -65,9 +65,10 @@ class FormationSpec:
 
     formation: a name of :data:`planner.FORMATIONS`, ``scatter``, ``text``
         (then ``text``, ``font``, ``fill``) or ``strokes`` (then ``strokes``).
-    scale: the bounding-box side of the robots' centres as a fraction of
+    scale: the longer side of the robots' bounding box as a fraction of
         ``min(W, H)`` (enlarged when robots would come closer than
-        ``2 r + margin``).
+        ``2 r + margin``); ``None`` means ``fit``: as large as fits 90 % of
+        the workspace (less the wall clearance) unrotated.
     rotation: degrees counter-clockwise; ``None`` means random.
     center: the bounding box's centre [units]; ``None`` means random.
     region: ``(x0, y0, x1, y1)`` that scatter spreads the centres over.
@@ -76,7 +77,7 @@ class FormationSpec:
     """
 
     formation: str | None = None
-    scale: float = 0.3
+    scale: float | None = 0.3
     rotation: float | None = None
     center: tuple[float, float] | None = None
     points: tuple[tuple[float, float], ...] | None = None
@@ -324,7 +325,7 @@ def read_scenario(path: str | Path) -> Scenario:
     else:
         target = _read_placement(r, doc["target"], "target", width, height, base)
     specs = [("start", start)] + ([(f"targets[{i}]", t) for i, t in enumerate(targets)] or [("target", target)])
-    count = _resolve_count(r, count, specs, width, height, 2 * radius + margin)
+    count = _resolve_count(r, count, specs, width, height, 2 * radius + margin, radius + margin)
 
     return Scenario(
         path=str(path),
@@ -424,7 +425,6 @@ def _read_polygon(r: _Reader, body, f: str, width, height) -> Polygon:
 
 
 _SCATTER = "scatter"
-_TEXT_SCALE = 0.8  # default scale of text (a word is wide: it spans most of the workspace)
 MAX_HOLD = 60.0  # [s]
 
 
@@ -467,7 +467,8 @@ def _read_placement(r: _Reader, value, f: str, width, height, base: Path = Path(
     if "region" in v:
         r.fail(f"{f}.region", "applies to scatter only")
     drawn = name in ("text", "strokes")
-    scale = r.number(v.get("scale", _TEXT_SCALE if name == "text" else 0.3), f"{f}.scale", gt=0, le=1)
+    sc = v.get("scale", "fit" if drawn else 0.3)
+    scale = None if sc == "fit" else r.number(sc, f"{f}.scale", gt=0, le=1)
     rot = v.get("rotation", 0.0 if drawn else "random")
     rotation = None if rot == "random" else r.number(rot, f"{f}.rotation")
     cen = v.get("center", "random")
@@ -546,7 +547,8 @@ def _read_region(r: _Reader, value, f: str, width, height) -> tuple[float, float
     return (x0, y0, x1, y1)
 
 
-def _resolve_count(r: _Reader, count, specs: list[tuple[str, FormationSpec]], width, height, sep) -> int:
+def _resolve_count(r: _Reader, count, specs: list[tuple[str, FormationSpec]], width, height, sep,
+                   clearance) -> int:
     from .placements import default_count
 
     sizes = [(key, len(spec.points)) for key, spec in specs if spec.points is not None]
@@ -559,7 +561,7 @@ def _resolve_count(r: _Reader, count, specs: list[tuple[str, FormationSpec]], wi
             r.fail("robots.count", f"is {count} but {key}.points has {n} points")
         count = n
     if count is None:
-        defaults = [(key, spec, default_count(spec, width, height, sep)) for key, spec in specs]
+        defaults = [(key, spec, default_count(spec, width, height, sep, clearance)) for key, spec in specs]
         defaults = [d for d in defaults if d[2] is not None]
         if not defaults:
             chain = " -> ".join(spec.describe() for _, spec in specs)
@@ -764,7 +766,10 @@ def build_legs(scenario: Scenario, rng: np.random.Generator) -> tuple[Problem, t
 
 def _shape(make_shape, spec: FormationSpec, s: Scenario, sep: float, rng, key: str) -> np.ndarray:
     """The spec's shape at its scale; a sampler's refusal becomes a :class:`ProblemError` on ``key``."""
+    from .placements import formation_side
+
     try:
-        return make_shape(spec, s.count, spec.scale * min(s.width, s.height), sep, rng)
+        side = formation_side(spec, s.width, s.height, s.radius + s.margin)
+        return make_shape(spec, s.count, side, sep, rng)
     except ValueError as exc:
         raise ProblemError(f"{key}.formation", str(exc)) from None

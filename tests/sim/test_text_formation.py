@@ -25,7 +25,7 @@ from planner.area import area_points
 from planner.skeleton import mask_strokes
 from planner.strokes import drawing, stroke_points
 from sim.glyphs import GlyphError, render_text
-from sim.placements import STROKE_SPACING, default_count, make_shape
+from sim.placements import FIT, STROKE_SPACING, default_count, formation_side, make_shape
 from sim.scenario import ScenarioError, build_legs, build_problem, read_scenario
 
 LETTERS = "ABCDEFHKMNOPRSTUVWXZ"
@@ -148,7 +148,9 @@ def test_scenario_places_the_shape_rigidly(tmp_path, fill):
     path = _write(tmp_path, _TEXT % ("", "SWARM", fill_key))
     sc = read_scenario(path)
     assert sc.target.text == "SWARM" and sc.target.fill == fill
-    assert sc.target.rotation == 0.0 and sc.target.scale == 0.8  # text defaults: upright, wide
+    assert sc.target.rotation == 0.0 and sc.target.scale is None  # text defaults: upright, as big as fits
+    side = formation_side(sc.target, 80, 80, 1.1)
+    assert side == pytest.approx(FIT * (80 - 2.2))  # a word is wide: its width binds
     problem = build_problem(sc, np.random.default_rng(sc.seed))
     m = sc.count
     assert problem.m == m and m == default_count(sc.target, 80, 80, 2.1)
@@ -157,10 +159,10 @@ def test_scenario_places_the_shape_rigidly(tmp_path, fill):
         assert pdist(pts).min() >= sep
         assert problem.env.point_clearance(pts).min() >= clear
     if fill == "strokes":  # the strokes shape draws nothing from the generator
-        shape = make_shape(sc.target, m, 0.8 * 80, sep, np.random.default_rng(0))
+        shape = make_shape(sc.target, m, side, sep, np.random.default_rng(0))
         np.testing.assert_allclose(problem.target, shape + [40, 44], atol=1e-9)
         # at the default count the text keeps its requested size (no enlargement)
-        assert float(np.ptp(problem.target, axis=0).max()) == pytest.approx(64.0, rel=0.08)
+        assert float(np.ptp(problem.target, axis=0).max()) == pytest.approx(side, rel=0.02)
 
 
 def test_default_count_suits_the_size(tmp_path):
