@@ -2,18 +2,18 @@
 
 A drawing is a tuple of strokes.  A stroke is an open polyline, a closed
 polyline (its last point equals its first; one with sharp corners is opened
-at its first corner), or a circular arc.  Robots are
-allocated to the strokes so that the spacing along every stroke is about the
-same (:func:`_allocate`), then spread evenly along each stroke.
+at its first corner), or a circular arc.  Robots are allocated to the
+strokes so that the spacing along every stroke is about the same
+(:func:`_allocate`), then spread evenly along each stroke.
 
 Where strokes meet only one of them puts a robot on the shared point: an end
 of a stroke is *excluded* when it lies on an earlier stroke, or inside (not
 at an end of) a later one.  Open polylines are split at sharp corners
 (turning by more than :data:`CORNER_DEGREES`) so that every such corner holds
 a robot and the two arms never crowd each other.  Strokes that cross or
-touch elsewhere can still bring two robots close: such a pair is resolved by
-dropping one robot and spreading one more over the drawing
-(:func:`stroke_points`).
+touch elsewhere can still bring two robots close: such pairs lose one robot
+each and the drawing is spread again with as many more (:func:`stroke_points`;
+strokes that cross everywhere fall back to a greedy pick along them).
 
 The same sampler draws the paper's letters, user-drawn ``strokes:`` and the
 skeletons of rendered text.

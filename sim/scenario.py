@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from planner.formations import DEFAULT_COUNTS, formation_shape, place_formation
+from planner.formations import DEFAULT_COUNTS, place_formation
 from planner.geometry import Environment, segment_segment_distance
 from planner.params import PlannerParams
 from planner.problem import Circle, Polygon, Problem, ProblemError, check_placement

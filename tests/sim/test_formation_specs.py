@@ -234,3 +234,18 @@ def test_chain_count_comes_from_any_leg(tmp_path):
         targets: [{formation: ring}, {formation: phi}, {formation: line}]
     """))
     assert sc.count == 11
+
+
+def test_scale_fit_fills_the_workspace(tmp_path):
+    """scale: fit (any shape): the unrotated box fills 90 % of the workspace less the wall clearance."""
+    sc = read_scenario(_write(tmp_path, """\
+        workspace: [60, 30]
+        robots: {count: 10}
+        start: {formation: line, scale: fit, rotation: 0, center: [30, 10]}
+        target: {formation: ring, scale: fit, center: [30, 15]}
+    """))
+    assert sc.start.scale is None and sc.target.scale is None
+    p = build_problem(sc, np.random.default_rng(0))
+    assert np.ptp(p.start[:, 0]) == pytest.approx(0.9 * (60 - 2.2))  # a line: its width binds
+    assert np.ptp(p.target, axis=0).max() <= 0.9 * (30 - 2.2) + 1e-9  # a ring: the height binds
+    assert np.ptp(p.target, axis=0).max() >= 0.8 * (30 - 2.2)
