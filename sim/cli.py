@@ -25,6 +25,9 @@ def _cmd_formations(args) -> int:
     print("formation  default count (paper Table I)")
     for name, count in DEFAULT_COUNTS.items():
         print(f"{name:<10} {count if count is not None else 'needs robots.count'}")
+    print("scatter    needs robots.count (spread over the free space, or over region: [x0, y0, x1, y1])")
+    print("text       from the text's size, or robots.count ({text: WORDS, font: FILE.ttf, fill: strokes|area})")
+    print("strokes    from the strokes' length, or robots.count ({strokes: [[[x, y], ...], ...]} in a unit box)")
     return EXIT_OK
 
 
@@ -50,7 +53,7 @@ def _cmd_show(args) -> int:
     title = f"{scenario.name}  seed {seed}"
     image = draw_scenario(problem, size=args.size, title=title)
     write_png(out, image)
-    print(f"wrote {out}  ({scenario.start.describe()} -> {scenario.target.describe()}, m={problem.m})")
+    print(f"wrote {out}  ({scenario.describe()}, m={problem.m})")
     return EXIT_OK
 
 
@@ -86,16 +89,25 @@ def _params_with_time_limit(scenario, time_limit):
 
 
 def _cmd_plan(args) -> int:
-    from planner import NoPlanFound, plan
+    import numpy as np
 
-    scenario, seed, rng, problem = _load(args.scenario, args.seed)
+    from planner import NoPlanFound
+
+    from .legs import plan_legs
+    from .scenario import build_legs, read_scenario
+
+    scenario = read_scenario(args.scenario)
+    seed = scenario.seed if args.seed is None else args.seed
+    rng = np.random.default_rng(seed)
+    problem, targets = build_legs(scenario, rng)
     out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-plan.json"
     params = _params_with_time_limit(scenario, args.time_limit)
     mode = "auto" if params.auto else f"g={params.g} q={params.q}"
     print(f"{scenario.name} (seed {seed}): {problem.m} robots, "
-          f"{scenario.start.describe()} -> {scenario.target.describe()}, {mode}")
+          f"{scenario.describe()}, {mode}")
     try:
-        result, stats = plan(problem, params, rng)
+        result, stats, _ = plan_legs(problem, targets, params, rng, holds=[t.hold for t in scenario.legs],
+                                     labels=[t.describe() for t in scenario.legs])
     except NoPlanFound as exc:
         _print_stats(exc.stats, problem.margin, auto=params.auto)
         print(f"no plan: {exc}", file=sys.stderr)

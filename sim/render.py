@@ -109,6 +109,7 @@ def render_frames(
     *,
     step_times: np.ndarray | None = None,
     title: str = "",
+    targets: Sequence[tuple[float, np.ndarray]] | None = None,
 ) -> Frames:
     """The video frames of a recorded run, as a :class:`Frames` sequence.
 
@@ -131,6 +132,10 @@ def render_frames(
         header then names the active step, counted from 1 (``step 1/5``),
         and says when the plan is over and the robots are settling.
     title: first header line (cut to fit).
+    targets: for chained targets, ``(start time [s], placement (m, 2))``
+        of each leg in time order; a frame marks the placement of the leg
+        under way (the first one's before its start time) and the header
+        names the leg.  Default: ``problem.target`` throughout.
 
     The arguments are checked at once; frames are drawn when asked for.
     """
@@ -153,9 +158,15 @@ def render_frames(
         steps = np.asarray(step_times, float).reshape(-1)
         if len(steps) < 1 or not np.all(np.isfinite(steps)) or np.any(np.diff(steps) < 0):
             raise ValueError("step_times must be a non-empty, non-decreasing (K + 1,) array of finite times")
+    legs = None
+    if targets is not None:
+        legs = [(float(t0), np.asarray(p, float).reshape(-1, 2)) for t0, p in targets]
+        if not legs or any(p.shape != (problem.m, 2) for _, p in legs) or any(
+                b[0] < a[0] for a, b in zip(legs, legs[1:])):
+            raise ValueError("targets must be (time, (m, 2) placement) pairs in time order")
     clock = timing(t[-1] - t[0], params)
     rows = _contact_table(problem, contacts, t, pos)
-    return Frames(problem, t, pos, rows, params, clock, steps, str(title))
+    return Frames(problem, t, pos, rows, params, clock, steps, str(title), legs)
 
 
 class _Contacts:
@@ -261,7 +272,7 @@ class Frames(Sequence):
     the drawing ``(n, 3) uint8``, most important first (for a GIF palette).
     """
 
-    def __init__(self, problem, t, pos, contacts: _Contacts, params, clock: Timing, steps, title):
+    def __init__(self, problem, t, pos, contacts: _Contacts, params, clock: Timing, steps, title, legs=None):
         self.problem = problem
         self.timing = clock
         self.speedup = clock.speedup
@@ -277,16 +288,22 @@ class Frames(Sequence):
         self._tints = [tint(c) for c in self._colors]
         r = cv.r
 
-        # static layer: background, walls, obstacles, start rings, target discs, fixed header text
-        static = cv.background.copy()
-        for c in cv.to_px(problem.target):
-            cv.disc(static, TARGET_MARK, c, r)
-        for c in cv.to_px(problem.start):
-            cv.ring(static, START_MARK, c, r, max(1, int(r / 5)))
-        speed = f"{clock.speedup:g}x speed"
-        speed_w = cv.text_line(static, speed, 0, right=True)
-        cv.text_line(static, title, 0, width=cv.width_px - 2 * cv.border - 20 - speed_w)
-        self._static = static
+        # static layers, one per leg of a chain: background, walls, obstacles,
+        # the start rings (first leg), the leg's target discs, fixed header text
+        legs = legs or [(float(t[0]), problem.target)]
+        self._leg_starts = np.array([t0 for t0, _ in legs])
+        self._statics = []
+        for n, (_, target) in enumerate(legs):
+            static = cv.background.copy()
+            for c in cv.to_px(target):
+                cv.disc(static, TARGET_MARK, c, r)
+            if n == 0:
+                for c in cv.to_px(problem.start):
+                    cv.ring(static, START_MARK, c, r, max(1, int(r / 5)))
+            speed = f"{clock.speedup:g}x speed"
+            speed_w = cv.text_line(static, speed, 0, right=True)
+            cv.text_line(static, title, 0, width=cv.width_px - 2 * cv.border - 20 - speed_w)
+            self._statics.append(static)
         self._surf = pygame.Surface((cv.width_px, cv.height_px))
 
         # trails: positions on a uniform grid, in pixels (at most a few hundred points per robot)
@@ -350,7 +367,8 @@ class Frames(Sequence):
         tc = t0 + now
         cur = cv.to_px(_interpolate(self._t, self._pos, np.array([tc]))[0])
         surf = self._surf
-        surf.blit(self._static, (0, 0))
+        leg = max(0, int(np.searchsorted(self._leg_starts, tc, side="right")) - 1)
+        surf.blit(self._statics[leg], (0, 0))
         self._draw_trails(surf, now, cur)
 
         # contacts: records within the flash window, and the count so far
@@ -373,6 +391,8 @@ class Frames(Sequence):
             self._draw_flash(surf, i0, i1, cur, hot)
 
         status = f"t = {now:.1f} s / {self.timing.duration:.1f} s" + self._step_text(tc)
+        if len(self._statics) > 1:
+            status += f"   target {leg + 1}/{len(self._statics)}"
         if i1 > 0:
             seen = plural(int(ct.seen[i1 - 1]), "contact")
             if i1 > i0:

@@ -16,16 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
-from planner import NoPlanFound, Plan, PlanStats, min_clearance, plan
+from planner import NoPlanFound, Plan, PlanStats, min_clearance
 from planner.bounds import lower_bounds
 
 from .execute import SimReport, execute
+from .legs import plan_legs
 from .media import atomic_path, has_mp4, write_video
 from .progress import ProgressBar
 from .playback import MAX_VIDEO_SECONDS
 from .render import render_frames
 from .report import run_page
-from .scenario import Scenario, build_problem, read_scenario
+from .scenario import Scenario, build_legs, read_scenario
 from .series import write_series
 from .words import plural
 
@@ -63,6 +64,8 @@ def plan_summary(stats: PlanStats, *, valid: bool | None = None, auto: bool = Fa
             out["direct"] = d["direct"]
     if valid is not None:
         out["valid"] = valid
+    if "legs" in stats.extra:
+        out["legs"] = stats.extra["legs"]
     return out
 
 
@@ -107,11 +110,12 @@ def run_scenario(
         seed = recorded if seed is None else seed
     seed = scenario.seed if seed is None else seed
     rng = np.random.default_rng(seed)
-    problem = build_problem(scenario, rng)
+    problem, targets = build_legs(scenario, rng)
+    leg_times = None
     out_dir = Path(out_dir)
     name = scenario.name
     say = (lambda *a: print(*a, file=out)) if out is not None else (lambda *a: None)
-    say(f"{name} (seed {seed}): {problem.m} robots, {scenario.start.describe()} -> {scenario.target.describe()}")
+    say(f"{name} (seed {seed}): {problem.m} robots, {scenario.describe()}")
 
     report: dict = {"scenario": name, "seed": seed, "robots": problem.m, "radius": problem.radius,
                     "margin": problem.margin, "scenario_file": str(path)}
@@ -123,7 +127,9 @@ def run_scenario(
     else:
         params = scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
         try:
-            result, stats = plan(problem, params, rng)
+            result, stats, leg_times = plan_legs(problem, targets, params, rng,
+                                                 holds=[t.hold for t in scenario.legs],
+                                                 labels=[t.describe() for t in scenario.legs])
         except NoPlanFound as exc:
             report["plan"] = plan_summary(exc.stats, auto=params.auto)
             report["plan"]["error"] = str(exc)
@@ -166,8 +172,9 @@ def run_scenario(
     if render and "mp4" in scenario.render.formats and not has_mp4():
         say("  (no MP4: install imageio-ffmpeg, e.g. pip install -e '.[video]')")
     if render:
+        legs = None if leg_times is None or len(targets) < 2 else list(zip(leg_times[:-1], targets))
         frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
-                               step_times=result.times, title=name)
+                               step_times=result.times, title=name, targets=legs)
         report["video"] = frames.timing.to_dict()
         if frames.timing.raised:
             say(f"  video: {frames.speedup:g}x speed, raised to keep it within {MAX_VIDEO_SECONDS:g} s")

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from planner.formations import DEFAULT_COUNTS, formation_shape, place_formation
+from planner.formations import DEFAULT_COUNTS, place_formation
 from planner.geometry import Environment, segment_segment_distance
 from planner.params import PlannerParams
 from planner.problem import Circle, Polygon, Problem, ProblemError, check_placement
@@ -28,10 +28,13 @@ from .params import MAX_FPS, MAX_RENDER_SIZE, Failure, Impulse, Noise, Pushes, R
 
 __all__ = [
     "FormationSpec",
+    "MAX_HOLD",
+    "MAX_TARGETS",
     "PaperRef",
     "RandomObstacles",
     "Scenario",
     "ScenarioError",
+    "build_legs",
     "build_problem",
     "read_scenario",
 ]
@@ -58,19 +61,42 @@ class RandomObstacles:
 
 @dataclass(frozen=True)
 class FormationSpec:
-    """Either a named formation (with scale, rotation, centre) or explicit points.
+    """One placement of the swarm: a formation (with scale, rotation, centre) or explicit points.
 
-    rotation ``None`` and center ``None`` mean random.
+    formation: a name of :data:`planner.FORMATIONS`, ``scatter``, ``text``
+        (then ``text``, ``font``, ``fill``) or ``strokes`` (then ``strokes``).
+    scale: the longer side of the robots' bounding box as a fraction of
+        ``min(W, H)`` (enlarged when robots would come closer than
+        ``2 r + margin``); ``None`` means ``fit``: as large as fits 90 % of
+        the workspace (less the wall clearance) unrotated.
+    rotation: degrees counter-clockwise; ``None`` means random.
+    center: the bounding box's centre [units]; ``None`` means random.
+    region: ``(x0, y0, x1, y1)`` that scatter spreads the centres over.
+    hold: seconds the swarm rests in this formation before the next leg
+        starts (chained ``targets`` only).
     """
 
     formation: str | None = None
-    scale: float = 0.3
+    scale: float | None = 0.3
     rotation: float | None = None
     center: tuple[float, float] | None = None
     points: tuple[tuple[float, float], ...] | None = None
+    text: str | None = None
+    font: str | None = None
+    fill: str = "strokes"
+    strokes: tuple[tuple[tuple[float, float], ...], ...] | None = None
+    region: tuple[float, float, float, float] | None = None
+    hold: float = 0.0
 
     def describe(self) -> str:
-        return "points" if self.points is not None else str(self.formation)
+        if self.points is not None:
+            return "points"
+        if self.text is not None:
+            shown = self.text if len(self.text) <= 24 else self.text[:21] + "..."
+            return f"text {shown!r}" + (" (area)" if self.fill == "area" else "")
+        if self.strokes is not None:
+            return f"strokes ({len(self.strokes)})"
+        return str(self.formation)
 
 
 @dataclass(frozen=True)
@@ -84,7 +110,11 @@ class PaperRef:
 
 @dataclass(frozen=True)
 class Scenario:
-    """A checked scenario file.  Lengths in workspace units, speeds in units/s."""
+    """A checked scenario file.  Lengths in workspace units, speeds in units/s.
+
+    ``target`` is the last target; ``targets`` holds every target of a
+    chained scenario (empty when the file gives one ``target``).
+    """
 
     path: str
     name: str
@@ -103,6 +133,16 @@ class Scenario:
     sim: SimParams
     render: RenderParams
     paper: PaperRef | None = None
+    targets: tuple[FormationSpec, ...] = ()
+
+    @property
+    def legs(self) -> tuple[FormationSpec, ...]:
+        """The targets in the order they are reached (``target`` alone unless chained)."""
+        return self.targets or (self.target,)
+
+    def describe(self) -> str:
+        """``start -> target`` (every target of a chain)."""
+        return " -> ".join(spec.describe() for spec in (self.start, *self.legs))
 
 
 # ----------------------------------------------------------------------------
@@ -221,7 +261,9 @@ def _kind(value: Any) -> str:
     return type(value).__name__
 
 
-_TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "planner", "sim", "render", "paper")
+_TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "targets", "planner", "sim",
+        "render", "paper")
+MAX_TARGETS = 16  # legs of a chained scenario
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
 
@@ -268,9 +310,12 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
 
         doc = apply_overrides(doc, overrides)
     doc = r.mapping(doc, "", _TOP)
-    for key in ("start", "target"):
-        if key not in doc:
-            r.fail(key, "is required")
+    if "start" not in doc:
+        r.fail("start", "is required")
+    if "target" in doc and "targets" in doc:
+        r.fail("targets", "give either target (one) or targets (a chain), not both")
+    if "target" not in doc and "targets" not in doc:
+        r.fail("target", "is required (or targets, a list of formations reached in turn)")
 
     name = doc.get("name", path.stem)
     if not isinstance(name, str) or not _NAME_RE.match(name):
@@ -286,9 +331,20 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
     max_accel = r.number(rob.get("max_accel", 2.0), "robots.max_accel", gt=0)
 
     obstacles = _read_obstacles(r, doc.get("obstacles", []), width, height)
-    start = _read_placement(r, doc["start"], "start", width, height)
-    target = _read_placement(r, doc["target"], "target", width, height)
-    count = _resolve_count(r, count, start, target)
+    base = path.parent
+    start = _read_placement(r, doc["start"], "start", width, height, base)
+    targets: tuple[FormationSpec, ...] = ()
+    if "targets" in doc:
+        legs = doc["targets"]
+        if not isinstance(legs, list) or not 1 <= len(legs) <= MAX_TARGETS:
+            r.fail("targets", f"must be a list of 1 to {MAX_TARGETS} formations, got {_kind(legs)}")
+        targets = tuple(_read_placement(r, v, f"targets[{i}]", width, height, base, chained=True)
+                        for i, v in enumerate(legs))
+        target = targets[-1]
+    else:
+        target = _read_placement(r, doc["target"], "target", width, height, base)
+    specs = [("start", start)] + ([(f"targets[{i}]", t) for i, t in enumerate(targets)] or [("target", target)])
+    count = _resolve_count(r, count, specs, width, height, 2 * radius + margin, radius + margin)
 
     return Scenario(
         path=str(path),
@@ -308,6 +364,7 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
         sim=_read_sim(r, doc.get("sim"), count),
         render=_read_render(r, doc.get("render")),
         paper=_read_paper(r, doc.get("paper")),
+        targets=targets,
     )
 
 
@@ -386,23 +443,52 @@ def _read_polygon(r: _Reader, body, f: str, width, height) -> Polygon:
     return Polygon(pts)
 
 
-def _read_placement(r: _Reader, value, f: str, width, height) -> FormationSpec:
+_SCATTER = "scatter"
+MAX_HOLD = 60.0  # [s]
+
+
+def _read_placement(r: _Reader, value, f: str, width, height, base: Path = Path("."), *,
+                    chained: bool = False) -> FormationSpec:
     if not isinstance(value, dict):
         r.fail(f, f"must be a mapping with formation or points, got {_kind(value)}")
+    extra = ("hold",) if chained else ()
+    hold = 0.0
+    if chained:
+        hold = r.number(value.get("hold", 2.0), f"{f}.hold", ge=0, le=MAX_HOLD)
     if "points" in value:
-        r.mapping(value, f, ("points",))
+        r.mapping(value, f, ("points",) + extra)
         pts = value["points"]
         if not isinstance(pts, list) or len(pts) < 1:
             r.fail(f"{f}.points", f"must be a non-empty list of [x, y], got {_kind(pts)}")
-        return FormationSpec(points=tuple(r.pair(p, f"{f}.points[{i}]") for i, p in enumerate(pts)))
-    v = r.mapping(value, f, ("formation", "scale", "rotation", "center"))
+        return FormationSpec(points=tuple(r.pair(p, f"{f}.points[{i}]") for i, p in enumerate(pts)), hold=hold)
+    v = r.mapping(value, f, ("formation", "scale", "rotation", "center", "region") + extra)
     if "formation" not in v:
         r.fail(f, "needs formation or points")
     name = v["formation"]
-    if not isinstance(name, str) or name not in DEFAULT_COUNTS:
-        r.fail(f"{f}.formation", f"unknown formation {name!r} (known: {', '.join(DEFAULT_COUNTS)})")
-    scale = r.number(v.get("scale", 0.3), f"{f}.scale", gt=0, le=1)
-    rot = v.get("rotation", "random")
+    text = font = strokes = None
+    fill = "strokes"
+    if isinstance(name, dict):
+        text, font, fill, strokes = _read_drawing(r, name, f"{f}.formation", base)
+        name = "text" if text is not None else "strokes"
+    elif not isinstance(name, str) or name not in DEFAULT_COUNTS and name != _SCATTER:
+        known = ", ".join([*DEFAULT_COUNTS, _SCATTER])
+        r.fail(f"{f}.formation", f"unknown formation {_short(name)} (known: {known}; or a mapping "
+                                 f"{{text: ...}} or {{strokes: ...}})")
+    if name == _SCATTER:
+        for key in ("scale", "rotation", "center"):
+            if key in v:
+                r.fail(f"{f}.{key}", "does not apply to scatter, which spreads over the free space "
+                                     "(use region: [x0, y0, x1, y1])")
+        region = None
+        if "region" in v:
+            region = _read_region(r, v["region"], f"{f}.region", width, height)
+        return FormationSpec(formation=name, region=region, hold=hold)
+    if "region" in v:
+        r.fail(f"{f}.region", "applies to scatter only")
+    drawn = name in ("text", "strokes")
+    sc = v.get("scale", "fit" if drawn else 0.3)
+    scale = None if sc == "fit" else r.number(sc, f"{f}.scale", gt=0, le=1)
+    rot = v.get("rotation", 0.0 if drawn else "random")
     rotation = None if rot == "random" else r.number(rot, f"{f}.rotation")
     cen = v.get("center", "random")
     center = None
@@ -410,43 +496,105 @@ def _read_placement(r: _Reader, value, f: str, width, height) -> FormationSpec:
         center = r.pair(cen, f"{f}.center")
         if not (0 <= center[0] <= width and 0 <= center[1] <= height):
             r.fail(f"{f}.center", f"({center[0]:g}, {center[1]:g}) lies outside the workspace")
-    return FormationSpec(formation=name, scale=scale, rotation=rotation, center=center)
+    return FormationSpec(formation=name, scale=scale, rotation=rotation, center=center, text=text, font=font,
+                         fill=fill, strokes=strokes, hold=hold)
 
 
-def _resolve_count(r: _Reader, count, start: FormationSpec, target: FormationSpec) -> int:
-    sizes = {}
-    for key, spec in (("start", start), ("target", target)):
-        if spec.points is not None:
-            sizes[key] = (len(spec.points), f"{key}.points")
-    if len(sizes) == 2 and sizes["start"][0] != sizes["target"][0]:
-        r.fail(
-            "target.points",
-            f"has {sizes['target'][0]} robots but start.points has {sizes['start'][0]}",
-        )
+def _short(value, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _read_drawing(r: _Reader, value: dict, f: str, base: Path):
+    """``{text, font, fill}`` or ``{strokes}``: (text, font path, fill, strokes)."""
+    from planner.strokes import MAX_POINTS, MAX_STROKES, check_polylines
+
+    from .glyphs import GlyphError, check_text
+    from .placements import text_glyphs
+
+    if "strokes" in value:
+        r.mapping(value, f, ("strokes",))
+        lines = value["strokes"]
+        if not isinstance(lines, list) or not 1 <= len(lines) <= MAX_STROKES:
+            r.fail(f"{f}.strokes", f"must be a list of 1 to {MAX_STROKES} strokes (polylines), got {_kind(lines)}")
+        out = []
+        for i, line in enumerate(lines):
+            if not isinstance(line, list) or not 2 <= len(line) <= MAX_POINTS:
+                r.fail(f"{f}.strokes[{i}]", f"must be a list of 2 to {MAX_POINTS} points [x, y], got {_kind(line)}")
+            pts = []
+            for j, p in enumerate(line):
+                x, y = r.pair(p, f"{f}.strokes[{i}][{j}]")
+                if not (0 <= x <= 1 and 0 <= y <= 1):
+                    r.fail(f"{f}.strokes[{i}][{j}]", f"({x:g}, {y:g}) lies outside the unit box [0, 1] x [0, 1]")
+                pts.append((x, y))
+            out.append(tuple(pts))
+        try:
+            check_polylines(out, f"{f}.strokes")
+        except ValueError as exc:
+            where, _, why = str(exc).partition(": ")
+            r.fail(where, why)
+        return None, None, "strokes", tuple(out)
+    r.mapping(value, f, ("text", "font", "fill"))
+    if "text" not in value:
+        r.fail(f, "needs text (with optional font and fill) or strokes")
+    text = value["text"]
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        text = str(text)  # text: 2024 reads as a number
+    fill = value.get("fill", "strokes")
+    if fill not in ("strokes", "area"):
+        r.fail(f"{f}.fill", f"must be strokes or area, got {_short(fill)}")
+    font = value.get("font")
+    if font is not None:
+        if not isinstance(font, str) or not font or len(font) > 4096:
+            r.fail(f"{f}.font", f"must be a path to a TrueType font file, got {_kind(font)}")
+        font = str(base / Path(font).expanduser()) if not Path(font).expanduser().is_absolute() else font
+    try:
+        check_text(text)
+        text_glyphs(text, font)
+    except GlyphError as exc:
+        r.fail(f"{f}.{exc.field}", exc.reason)
+    return text, font, fill, None
+
+
+def _read_region(r: _Reader, value, f: str, width, height) -> tuple[float, float, float, float]:
+    if not isinstance(value, (list, tuple)) or len(value) != 4:
+        r.fail(f, f"must be [x0, y0, x1, y1], got {_kind(value)}")
+    x0, y0, x1, y1 = (r.number(v, f"{f}[{i}]") for i, v in enumerate(value))
+    if not (0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height):
+        r.fail(f, f"[{x0:g}, {y0:g}, {x1:g}, {y1:g}] must satisfy 0 <= x0 < x1 <= {width:g} "
+                  f"and 0 <= y0 < y1 <= {height:g} (inside the workspace)")
+    return (x0, y0, x1, y1)
+
+
+def _resolve_count(r: _Reader, count, specs: list[tuple[str, FormationSpec]], width, height, sep,
+                   clearance) -> int:
+    from .placements import default_count
+
+    sizes = [(key, len(spec.points)) for key, spec in specs if spec.points is not None]
+    for key, n in sizes[1:]:
+        if n != sizes[0][1]:
+            r.fail(f"{key}.points", f"has {n} robots but {sizes[0][0]}.points has {sizes[0][1]}")
     if sizes:
-        key, (n, where) = next(iter(sizes.items()))
+        key, n = sizes[0]
         if count is not None and count != n:
-            r.fail("robots.count", f"is {count} but {where} has {n} points")
+            r.fail("robots.count", f"is {count} but {key}.points has {n} points")
         count = n
     if count is None:
-        defaults = {}
-        for key, spec in (("start", start), ("target", target)):
-            d = DEFAULT_COUNTS[spec.formation]
-            if d is not None:
-                defaults[key] = d
+        defaults = [(key, spec, default_count(spec, width, height, sep, clearance)) for key, spec in specs]
+        defaults = [d for d in defaults if d[2] is not None]
         if not defaults:
-            r.fail(
-                "robots.count",
-                f"is required: {start.formation} -> {target.formation} has no default count",
-            )
-        if len(set(defaults.values())) > 1:
-            r.fail(
-                "robots.count",
-                f"count mismatch: start {start.formation} has {defaults['start']} robots, "
-                f"target {target.formation} has {defaults['target']}; set robots.count",
-            )
-        count = next(iter(defaults.values()))
-    if count < 2 and (start.points is None or target.points is None):
+            chain = " -> ".join(spec.describe() for _, spec in specs)
+            r.fail("robots.count", f"is required: {chain} has no default count")
+        for key, spec, n in defaults[1:]:
+            k0, s0, n0 = defaults[0]
+            if n != n0:
+                r.fail(
+                    "robots.count",
+                    f"count mismatch: {k0} {s0.describe()} has {n0} robots, "
+                    f"{key} {spec.describe()} has {n}; set robots.count",
+                )
+        count = defaults[0][2]
+    if count < 2 and any(spec.points is None for _, spec in specs):
         r.fail("robots.count", f"a formation needs at least 2 robots, got {count}")
     return count
 
@@ -642,16 +790,30 @@ def _random_obstacles(spec: RandomObstacles, width, height, rng, avoid, clearanc
 def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
     """Instantiate the scenario: random obstacles, formations, checks.
 
-    Raises :class:`ScenarioError` (with the file) for placements that do not
-    fit or overlap.
+    The problem's target is the last target (of a chained scenario:
+    :func:`build_legs` gives every one).  Raises :class:`ScenarioError`
+    (with the file) for placements that do not fit or overlap.
     """
+    return build_legs(scenario, rng)[0]
+
+
+def build_legs(scenario: Scenario, rng: np.random.Generator) -> tuple[Problem, tuple[np.ndarray, ...]]:
+    """The run's problem (start -> last target) and every target placement in order.
+
+    Draws from ``rng`` in a fixed order: random obstacles, then each
+    placement from the start on (a single-target scenario draws exactly as
+    :func:`build_problem` always has).
+    """
+    from .placements import make_shape, uses_rng
+
     s = scenario
+    specs = [("start", s.start)] + ([(f"targets[{i}]", t) for i, t in enumerate(s.targets)] or [("target", s.target)])
     try:
         # Formations are spaced for the margin the planner plans with
         # (planner.margin_extra inflates it), so that they fit it too.
         clearance = s.radius + s.margin + s.planner.margin_extra
         sep = 2 * s.radius + s.margin + s.planner.margin_extra
-        explicit = [np.asarray(p.points, float) for p in (s.start, s.target) if p.points is not None]
+        explicit = [np.asarray(p.points, float) for _, p in specs if p.points is not None]
         avoid = np.concatenate(explicit) if explicit else np.zeros((0, 2))
         obstacles = []
         for ob in s.obstacles:
@@ -670,35 +832,36 @@ def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
                 f"the {s.width:g} x {s.height:g} workspace offers {have:.0f}",
             )
         shell = Problem(s.width, s.height, tuple(obstacles), s.radius, s.margin, np.zeros((0, 2)), np.zeros((0, 2)))
-        # Letters and lines do not depend on the generator: build them first
-        # so that one that cannot fit at any rotation fails before any
-        # random placement is drawn.
+        # Shapes that do not depend on the generator (letters, lines, rings,
+        # text strokes, strokes) are built first, so that one that cannot fit
+        # at any rotation fails before any random placement is drawn.
         shapes = {}
         reach = float(np.hypot(s.width - 2 * clearance, s.height - 2 * clearance))
-        for key in ("start", "target"):
-            spec = getattr(s, key)
-            if spec.points is None and spec.formation != "random":
-                side = spec.scale * min(s.width, s.height)
-                shape = formation_shape(spec.formation, s.count, side, sep, rng)
+        for key, spec in specs:
+            if spec.points is None and spec.formation != _SCATTER and not uses_rng(spec):
+                shape = _shape(make_shape, spec, s, sep, rng, key)
                 span = float(np.max(np.linalg.norm(shape[:, None] - shape[None], axis=2)))
                 if span > reach:
                     raise ProblemError(
                         key,
-                        f"formation {spec.formation} of {s.count} robots spans {span:.3g} and does not fit "
+                        f"formation {spec.describe()} of {s.count} robots spans {span:.3g} and does not fit "
                         f"the {s.width:g} x {s.height:g} workspace at any rotation; lower robots.count",
                     )
                 shapes[key] = shape
-        placed = {}
-        for key in ("start", "target"):
-            spec = getattr(s, key)
+        placed = []
+        for key, spec in specs:
             if spec.points is not None:
                 pts = np.asarray(spec.points, float)
                 check_placement(shell, pts, f"{key}.points")
+            elif spec.formation == _SCATTER:
+                from planner.scatter import scatter
+
+                pts = scatter(shell.env, s.count, sep, clearance, rng, region=spec.region, field=key)
+                check_placement(shell, pts, key)
             else:
-                side = spec.scale * min(s.width, s.height)
                 shape = shapes.get(key)
                 if shape is None:
-                    shape = formation_shape(spec.formation, s.count, side, sep, rng)
+                    shape = _shape(make_shape, spec, s, sep, rng, key)
                 pts = place_formation(
                     shape,
                     shell.env,
@@ -709,18 +872,29 @@ def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
                     field=key,
                 )
                 check_placement(shell, pts, key)
-            placed[key] = pts
+            placed.append(pts)
         problem = Problem(
             s.width,
             s.height,
             tuple(obstacles),
             s.radius,
             s.margin,
-            placed["start"],
-            placed["target"],
+            placed[0],
+            placed[-1],
             max_speed=s.max_speed,
             max_accel=s.max_accel,
         )
-        return problem.validate()
+        return problem.validate(), tuple(placed[1:])
     except ProblemError as exc:
         raise ScenarioError(s.path, exc.field, exc.reason) from None
+
+
+def _shape(make_shape, spec: FormationSpec, s: Scenario, sep: float, rng, key: str) -> np.ndarray:
+    """The spec's shape at its scale; a sampler's refusal becomes a :class:`ProblemError` on ``key``."""
+    from .placements import formation_side
+
+    try:
+        side = formation_side(spec, s.width, s.height, s.radius + s.margin)
+        return make_shape(spec, s.count, side, sep, rng)
+    except ValueError as exc:
+        raise ProblemError(f"{key}.formation", str(exc)) from None

@@ -123,6 +123,7 @@ def test_default_counts_are_table_one():
         "lambda": 7,
         "phi": 11,
         "random": None,
+        "ring": None,
     }
     assert FORMATIONS == tuple(DEFAULT_COUNTS)
 

@@ -354,8 +354,8 @@ def test_formations_lists_all_with_counts(runs):
     r = runs["formations"]
     assert r.returncode == 0, r.stderr
     rows = {line.split()[0]: line.split(None, 1)[1] for line in r.stdout.splitlines()[1:] if line.strip()}
-    assert set(rows) == set(DEFAULT_COUNTS)
-    for name, count in DEFAULT_COUNTS.items():
+    assert set(rows) == set(DEFAULT_COUNTS) | {"scatter", "text", "strokes"}
+    for name, count in [*DEFAULT_COUNTS.items(), ("scatter", None), ("text", None), ("strokes", None)]:
         if count is None:
             assert "robots.count" in rows[name]
         else:

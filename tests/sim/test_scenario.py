@@ -42,7 +42,8 @@ def _write(tmp_path: Path, text: str, name: str = "case.yaml") -> Path:
 
 def _is_random(spec) -> bool:
     return spec.points is None and (
-        spec.formation == "random" or spec.rotation is None or spec.center is None
+        spec.formation in ("random", "scatter") or spec.rotation is None or spec.center is None
+        or (spec.text is not None and spec.fill == "area")  # Lloyd's relaxation starts from random pixels
     )
 
 
