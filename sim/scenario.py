@@ -154,7 +154,7 @@ class _Reader:
         """A finite number (not a boolean) within the given bounds."""
         span = _span(gt, ge, le, lt)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(field, f"must be a number{span}, got {_kind(value)}")
+            self.fail(field, f"must be a number{span}, got {_kind(value)}{_numeric_text_hint(value)}")
         if isinstance(value, int) and value.bit_length() > 1000:
             self.fail(field, f"must be a number{span}, got {_kind(value)}")
         value = float(value)
@@ -217,6 +217,17 @@ def _span(gt, ge, le, lt) -> str:
         return f" {'>' if gt is not None else '>='} {low[1:]}"
     if high:
         return f" {'<=' if le is not None else '<'} {high[:-1]}"
+    return ""
+
+
+def _numeric_text_hint(value) -> str:
+    """For text that reads as a number (YAML takes ``1e3`` for text): how to write it."""
+    if isinstance(value, str) and len(value) <= 40:
+        try:
+            float(value)
+        except ValueError:
+            return ""
+        return " (text; write a number such as 1.0e+3 without quotes)"
     return ""
 
 
