@@ -86,7 +86,8 @@ def echo(value, limit: int = ECHO_LIMIT) -> str:
 def echo_key(key, limit: int = 24) -> str:
     """A mapping key as it goes into a field name (``robots.radius``), short."""
     if isinstance(key, str):
-        text = key if key.isprintable() else repr(key)[1:-1]
+        plain = key and key.isprintable() and key.strip() == key and ":" not in key
+        text = key if plain else repr(key)
         return text if len(text) <= limit else text[: limit - 3] + "..."
     return echo(key, limit)
 

@@ -52,9 +52,13 @@ points and 4096 polygon vertices (the biggest shipped scenario is under 1 KiB)."
 # Bounds shared by several fields (see the README's input table).
 _MAX_SIDE = 1000.0  # workspace side [units]
 _MAX_ROBOTS = 1000
-_MAX_OBSTACLES = 200  # obstacles of a scenario, random ones included
-_MAX_VERTICES = 256  # vertices of one polygon
-_MAX_ALL_VERTICES = 4096  # vertices of all polygons given in the file
+# Obstacles of a scenario (random ones included), and their vertices (a random
+# obstacle counts as 8, the most it has).  The planner's corner-visibility
+# graph holds temporaries of about (corners^2 x edges) floats: 32 random
+# obstacles of up to 8 vertices peaked at 1.1 GB in dense workspaces.
+_MAX_OBSTACLES = 32
+_MAX_VERTICES = 192
+_RANDOM_VERTICES = 8
 _MAX_SEED = 2**63 - 1
 _MAX_NAME = 64  # characters
 
@@ -341,13 +345,9 @@ def _read_obstacles(r: _Reader, value, width, height) -> tuple:
             r.fail(f, f"must be a mapping with exactly one of polygon, circle, random, got {_kind(item)}")
         (kind, body), = item.items()
         if kind == "polygon":
-            if isinstance(body, list) and len(body) <= _MAX_VERTICES:
-                vertices += len(body)
-                if vertices > _MAX_ALL_VERTICES:
-                    r.fail(f"{f}.polygon", f"brings the polygons' vertices to {vertices}; "
-                           f"a scenario may have at most {_MAX_ALL_VERTICES}")
             out.append(_read_polygon(r, body, f"{f}.polygon", width, height))
             total += 1
+            vertices += len(body)
         elif kind == "circle":
             c = r.mapping(body, f"{f}.circle", ("center", "radius"))
             if "center" not in c or "radius" not in c:
@@ -358,7 +358,7 @@ def _read_obstacles(r: _Reader, value, width, height) -> tuple:
             total += 1
         elif kind == "random":
             c = r.mapping(body, f"{f}.random", ("count", "size", "seed"))
-            n = r.integer(c.get("count", 3), f"{f}.random.count", ge=1, le=_MAX_OBSTACLES)
+            n = r.integer(c.get("count", 3), f"{f}.random.count", ge=1, le=_MAX_VERTICES // _RANDOM_VERTICES)
             size = r.pair(c.get("size", [4, 8]), f"{f}.random.size", gt=0, le=_MAX_SIDE)
             if size[0] > size[1]:
                 r.fail(f"{f}.random.size", f"must be [min, max] with min <= max, got [{size[0]:g}, {size[1]:g}]")
@@ -367,15 +367,19 @@ def _read_obstacles(r: _Reader, value, width, height) -> tuple:
             seed = None if c.get("seed") is None else r.integer(c["seed"], f"{f}.random.seed", ge=0, le=_MAX_SEED)
             out.append(RandomObstacles(n, size, seed))
             total += n
+            vertices += _RANDOM_VERTICES * n
         else:
             r.fail(f"{f}.{echo_key(kind)}", "unknown obstacle kind (allowed: polygon, circle, random)")
         if total > _MAX_OBSTACLES:
             r.fail(f, f"brings the obstacles to {total}; a scenario may have at most {_MAX_OBSTACLES}")
+        if vertices > _MAX_VERTICES:
+            r.fail(f, f"brings the obstacle vertices to {vertices} (a random obstacle counts "
+                   f"{_RANDOM_VERTICES}); a scenario may have at most {_MAX_VERTICES}")
     return tuple(out)
 
 
 def _read_polygon(r: _Reader, body, f: str, width, height) -> Polygon:
-    """A simple polygon of 3 to 256 vertices in the workspace (checked in O(k log k))."""
+    """A simple polygon of 3 to 192 vertices in the workspace (checked in O(k log k))."""
     if not isinstance(body, list) or not 3 <= len(body) <= _MAX_VERTICES:
         r.fail(f, f"must be a list of 3 to {_MAX_VERTICES} points [x, y], got {_kind(body)}")
     pts = np.array([r.inside(p, f"{f}[{i}]", width, height) for i, p in enumerate(body)])
