@@ -24,13 +24,10 @@ import os
 import stat
 from pathlib import Path
 
-__all__ = ["ECHO_LIMIT", "HugeInt", "UnreadableFile", "echo", "echo_key", "echo_path", "int_or_huge", "read_text"]
+__all__ = ["ECHO_LIMIT", "HugeInt", "UnreadableFile", "echo", "echo_key", "echo_path", "read_text"]
 
 ECHO_LIMIT = 80
 """The longest rendering of a received value in an error message [characters]."""
-
-_INT_DIGITS = 30  # integer literals longer than this become HugeInt
-
 
 class UnreadableFile(ValueError):
     """A file that is not read; ``str()`` is one short line saying why."""
@@ -48,13 +45,6 @@ class HugeInt:
 
     def __repr__(self) -> str:
         return f"{'-' if self.negative else ''}<a {self.digits}-digit integer>"
-
-
-def int_or_huge(literal: str, base: int = 10) -> int | HugeInt:
-    """``int(literal, base)``, or a :class:`HugeInt` when it has more than 30 digits."""
-    if len(literal.strip().lstrip("+-").replace("_", "")) > _INT_DIGITS:
-        return HugeInt(literal)
-    return int(literal, base)
 
 
 def echo(value, limit: int = ECHO_LIMIT) -> str:

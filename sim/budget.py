@@ -54,13 +54,13 @@ def check_physics_budget(m: int, makespan: float, sim, source: str) -> None:
     body, samples = physics_cost(m, makespan, sim)
     what = None
     if body > MAX_BODY_STEPS:
-        what = f"{body:.3g} robot steps > {MAX_BODY_STEPS:.0e}"
+        what = f"{body:.3g} steps > {MAX_BODY_STEPS:.0e}"
     elif samples > MAX_SAMPLES:
-        what = f"{samples:.3g} positions to record > {MAX_SAMPLES:.0e}"
+        what = f"{samples:.3g} positions > {MAX_SAMPLES:.0e}"
     if what:
         raise InputError(
-            f"{echo_path(source)}: physics budget: {what} ({m} robots, {makespan:.3g} s plan); raise "
-            "robots.max_speed/max_accel, sim.dt; lower sim.substeps/settle_time"
+            f"{echo_path(source)}: physics budget: {m} robots x {makespan:.3g} s: {what}; raise "
+            "robots.max_speed/max_accel or sim.dt; lower sim.substeps/settle_time"
         )
 
 

@@ -63,7 +63,7 @@ LINE_MAX = 200
 
 # file -> (the field its one-line message names, a piece of the reason)
 CORPUS = {
-    "budget-slow-robots.yaml": ("physics budget", "robot steps > 5e+07"),
+    "budget-slow-robots.yaml": ("physics budget", "steps > 5e+07; raise robots.max_speed/max_accel"),
     "center-on-obstacle.yaml": ("target.center", "obstacle 0"),
     "center-outside-workspace.yaml": ("target.center", "outside the 40 x 40 workspace"),
     "circle-radius-huge.yaml": ("obstacles[0].circle.radius", "in (0, 40], got 1e+30"),
@@ -110,7 +110,7 @@ CORPUS = {
     "plan-missing-durations.json": ("durations", "is missing"),
     "plan-nan.json": ("waypoints[1][0][0]", "got number nan"),
     "plan-not-an-object.json": ("file", "must hold a JSON object"),
-    "plan-physics-budget.json": ("physics budget", "robot steps > 5e+07"),
+    "plan-physics-budget.json": ("physics budget", "2 robots x 1.1e+06 s: 5.28e+08 steps > 5e+07"),
     "plan-profile-unknown.json": ("profile", "'cubic'"),
     "plan-radius-mismatch.json": ("radius", "is 5 but tests/data/plan-base.yaml has robots.radius 1"),
     "plan-radius-string.json": ("radius", "got string '1'"),
