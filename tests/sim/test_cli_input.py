@@ -35,6 +35,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -663,3 +664,13 @@ def test_show_default_output_path(tmp_path, monkeypatch):
     out = tmp_path / "media" / "fig1-line-to-phi-scenario.png"
     assert iio.imread(out).shape[2] in (3, 4)
     assert [p.name for p in (tmp_path / "media").iterdir()] == [out.name]
+
+
+@pytest.mark.parametrize("name", ["yaml-alias-bomb.yaml", "yaml-nesting-flow.yaml", "file-too-big.yaml",
+                                  "count-5000-digits.yaml", "file-dev-zero.yaml"])
+def test_expanding_inputs_are_refused_in_milliseconds(name):
+    """Refused before anything is expanded or read in full: well under 50 ms in-process."""
+    t0 = time.perf_counter()
+    with pytest.raises(ScenarioError):
+        read_scenario(BAD / name)
+    assert time.perf_counter() - t0 < 0.05
