@@ -24,18 +24,41 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "LIMIT_RTOL",
+    "MAX_COORDINATE",
+    "MAX_DURATION",
+    "MAX_PLAN_BYTES",
+    "MAX_ROBOTS",
+    "MAX_STEPS",
+    "MIN_DURATION",
     "PROFILE",
     "Plan",
     "PlanFileError",
     "PlanStats",
     "min_jerk",
     "min_jerk_s",
+    "read_plan_file",
     "step_duration",
 ]
 
 PROFILE = "minimum_jerk"
 _S1_MAX = 15.0 / 8.0  # max of s'(u), at u = 1/2
 _S2_MAX = 10.0 / math.sqrt(3.0)  # max of |s''(u)|, at u = (3 -+ sqrt 3) / 6
+
+MAX_PLAN_BYTES = 64 << 20
+"""The largest plan file read [bytes] (64 MiB)."""
+MAX_STEPS = 100_000
+"""The most steps a plan file may hold."""
+MAX_ROBOTS = 1000
+"""The most robots a plan file may move."""
+MIN_DURATION = 1e-3
+"""The shortest step a plan file may hold [s]."""
+MAX_DURATION = 1e5
+"""The longest step a plan file may hold [s]."""
+MAX_COORDINATE = 1e6
+"""The largest absolute waypoint coordinate or length a plan file may hold [units]."""
+LIMIT_RTOL = 1e-6
+"""Relative tolerance on max_speed and max_accel when a plan file's steps are checked."""
 
 
 def min_jerk_s(u):
@@ -64,8 +87,10 @@ class PlanFileError(ValueError):
     """A plan file that cannot be read; ``str()`` names the file, field and reason."""
 
     def __init__(self, path, field: str, reason: str):
+        from .inputfile import echo_path
+
         self.path, self.field, self.reason = str(path), field, reason
-        super().__init__(f"{path}: {field}: {reason}")
+        super().__init__(f"{echo_path(path)}: {field}: {reason}")
 
 
 @dataclass
@@ -245,62 +270,200 @@ class Plan:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<plan>") -> "Plan":
-        if not isinstance(d, dict):
-            raise PlanFileError(source, "file", "must hold a JSON object")
-        for key in ("radius", "margin", "durations", "waypoints"):
-            if key not in d:
-                raise PlanFileError(source, key, "is missing")
-        profile = d.get("profile", PROFILE)
-        if profile != PROFILE:
-            raise PlanFileError(source, "profile", f"unknown profile {profile!r} (known: {PROFILE})")
-        try:
-            w = np.asarray(d["waypoints"], float)
-        except (TypeError, ValueError):
-            raise PlanFileError(source, "waypoints", "must be a [K+1][m][2] array of numbers") from None
-        try:
-            dur = np.asarray(d["durations"], float).reshape(-1)
-        except (TypeError, ValueError):
-            raise PlanFileError(source, "durations", "must be a list of numbers") from None
-        if w.ndim != 3 or w.shape[2] != 2 or w.shape[0] < 1 or w.shape[1] < 1:
-            raise PlanFileError(source, "waypoints", f"must be a [K+1][m][2] array, got shape {w.shape}")
-        if len(dur) != len(w) - 1:
-            raise PlanFileError(source, "durations", f"has {len(dur)} entries for {len(w)} waypoints")
-        if not np.all(np.isfinite(w)):
-            raise PlanFileError(source, "waypoints", "holds a non-finite number")
-        if not np.all(np.isfinite(dur)) or np.any(dur <= 0):
-            bad = int(np.flatnonzero(~(np.isfinite(dur) & (dur > 0)))[0])
-            raise PlanFileError(source, f"durations[{bad}]", "must be a finite number > 0")
-        for key in ("radius", "margin"):
-            v = d[key]
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
-                raise PlanFileError(source, key, f"must be a number >= 0, got {v!r}")
-        stats = None
-        if isinstance(d.get("stats"), dict):
-            known = set(PlanStats.__dataclass_fields__) - {"extra"}
-            s = d["stats"]
-            stats = PlanStats(
-                **{k: (float("nan") if s[k] is None else s[k]) for k in known if k in s},
-                extra={k: v for k, v in s.items() if k not in known},
-            )
-        return cls(
-            float(d["radius"]),
-            float(d["margin"]),
-            dur,
-            w,
-            d.get("max_speed"),
-            d.get("max_accel"),
-            stats,
-        )
+        """A plan from its JSON object, every field checked (see :func:`read_plan_file`)."""
+        return _plan_from_dict(cls, d, str(source))
 
     @classmethod
     def load(cls, path: str | Path) -> "Plan":
-        path = Path(path)
-        try:
-            d = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise PlanFileError(path, "file", "no such file") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise PlanFileError(path, "file", f"cannot be read ({exc})") from None
-        except json.JSONDecodeError as exc:
-            raise PlanFileError(path, f"line {exc.lineno}", f"invalid JSON: {exc.msg}") from None
-        return cls.from_dict(d, str(path))
+        """Read a plan file (see :func:`read_plan_file`)."""
+        return read_plan_file(path)[0]
+
+    def limit_violation(self, max_speed: float, max_accel: float, rtol: float = LIMIT_RTOL):
+        """The first step that needs more than ``max_speed`` or ``max_accel``, or None.
+
+        Under the minimum-jerk scaling a robot moving ``d`` in ``T`` seconds
+        peaks at ``15/8 d/T`` [units/s] and ``10/sqrt(3) d/T^2`` [units/s^2].
+        Returns ``(step, robot, "speed" or "acceleration", needed, limit)``
+        for the first step (and its farthest-moving robot) over a limit by
+        more than the relative tolerance ``rtol``.
+        """
+        if self.steps == 0:
+            return None
+        disp = np.linalg.norm(np.diff(self.waypoints, axis=0), axis=2)  # (K, m)
+        far = disp.argmax(axis=1)
+        d = disp[np.arange(self.steps), far]
+        speed = _S1_MAX * d / self.durations
+        accel = _S2_MAX * d / self.durations**2
+        bad = (speed > max_speed * (1 + rtol)) | (accel > max_accel * (1 + rtol))
+        if not bad.any():
+            return None
+        k = int(np.flatnonzero(bad)[0])
+        if speed[k] > max_speed * (1 + rtol):
+            return k, int(far[k]), "speed", float(speed[k]), float(max_speed)
+        return k, int(far[k]), "acceleration", float(accel[k]), float(max_accel)
+
+
+# ----------------------------------------------------------------------------
+# plan files
+
+_STAT_TYPES = {
+    "found": (bool,), "planning_time_s": (int, float), "g": (int,), "q": (int,), "graphs": (int,),
+    "connections": (int,), "steps": (int,), "makespan_s": (int, float), "path_length": (int, float),
+    "min_clearance": (int, float), "makespan_lower_bound_s": (int, float),
+    "path_length_lower_bound": (int, float),
+}
+
+
+def read_plan_file(path: str | Path) -> tuple["Plan", dict]:
+    """A plan file and its other top-level values (``seed``, ``scenario``), every field checked.
+
+    The file must be a regular file of at most :data:`MAX_PLAN_BYTES`
+    holding one JSON object with ``radius`` (> 0), ``margin`` (>= 0),
+    ``durations`` (K numbers in [:data:`MIN_DURATION`, :data:`MAX_DURATION`]
+    seconds, K <= :data:`MAX_STEPS`) and ``waypoints`` (K + 1 lists of the
+    same m <= :data:`MAX_ROBOTS` pairs [x, y] of finite numbers, not
+    strings or booleans, of absolute value <= :data:`MAX_COORDINATE`);
+    optionally ``profile`` (``minimum_jerk``), ``max_speed`` and
+    ``max_accel`` (numbers > 0), ``seed`` (an integer in [0, 2^63 - 1]) and
+    ``stats`` (the PlanStats fields, each of its type).  Unknown keys are
+    ignored.  Raises :class:`PlanFileError` naming the file, the field and
+    the reason, with the value received cut to about 80 characters.
+    """
+    from .inputfile import UnreadableFile, read_text
+
+    source = str(path)
+    try:
+        text = read_text(path, MAX_PLAN_BYTES)
+    except UnreadableFile as exc:
+        raise PlanFileError(source, "file", str(exc)) from None
+    try:
+        d = json.loads(text, parse_int=_json_int)
+    except json.JSONDecodeError as exc:
+        raise PlanFileError(source, f"line {exc.lineno}", f"invalid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise PlanFileError(source, "file", "nests lists or objects too deeply") from None
+    p = _plan_from_dict(Plan, d, source)
+    extra = {}
+    if "seed" in d:
+        extra["seed"] = _integer(d["seed"], source, "seed", 0, 2**63 - 1)
+    if "scenario" in d:
+        extra["scenario"] = d["scenario"]
+    return p, extra
+
+
+def _json_int(literal: str):
+    """A JSON integer, or a :class:`planner.inputfile.HugeInt` when it has over 30 digits."""
+    if len(literal) <= 30:
+        return int(literal)
+    from .inputfile import HugeInt
+
+    return HugeInt(literal)
+
+
+def _fail(source, field, reason):
+    raise PlanFileError(source, field, reason)
+
+
+def _is_number(v) -> bool:
+    return type(v) is float or type(v) is int
+
+
+def _number(v, source, field, lo, hi, *, lo_open=False) -> float:
+    from .inputfile import echo
+
+    span = f"in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
+    if not _is_number(v):
+        _fail(source, field, f"must be a number {span}, got {echo(v)}")
+    x = float(v) if abs(v) < 1e300 else math.inf
+    if not math.isfinite(x) or x > hi or x < lo or (lo_open and x == lo):
+        _fail(source, field, f"must be a number {span}, got {echo(v)}")
+    return x
+
+
+def _integer(v, source, field, lo, hi) -> int:
+    from .inputfile import echo
+
+    if type(v) is not int or not lo <= v <= hi:
+        top = "2^63 - 1" if hi == 2**63 - 1 else str(hi)
+        _fail(source, field, f"must be an integer in [{lo}, {top}], got {echo(v)}")
+    return v
+
+
+def _plan_from_dict(cls, d, source: str) -> "Plan":
+    from .inputfile import echo
+
+    if not isinstance(d, dict):
+        _fail(source, "file", f"must hold a JSON object, got {echo(d)}")
+    for key in ("radius", "margin", "durations", "waypoints"):
+        if key not in d:
+            _fail(source, key, "is missing")
+    profile = d.get("profile", PROFILE)
+    if profile != PROFILE:
+        _fail(source, "profile", f"unknown profile: {echo(profile)} (known: {PROFILE})")
+    radius = _number(d["radius"], source, "radius", 0, MAX_COORDINATE, lo_open=True)
+    margin = _number(d["margin"], source, "margin", 0, MAX_COORDINATE)
+    limits = []
+    for key in ("max_speed", "max_accel"):
+        v = d.get(key)
+        limits.append(None if v is None else _number(v, source, key, 0, 1e9, lo_open=True))
+
+    dur = d["durations"]
+    if not isinstance(dur, list):
+        _fail(source, "durations", f"must be a list of numbers, got {echo(dur)}")
+    if len(dur) > MAX_STEPS:
+        _fail(source, "durations", f"must hold at most {MAX_STEPS} steps, got {len(dur)}")
+    for k, v in enumerate(dur):
+        _number(v, source, f"durations[{k}]", MIN_DURATION, MAX_DURATION)
+
+    w = d["waypoints"]
+    if not isinstance(w, list) or not w:
+        _fail(source, "waypoints", f"must be a [K+1][m][2] list of numbers, got {echo(w)}")
+    if len(w) != len(dur) + 1:
+        _fail(source, "durations", f"has {len(dur)} entries for {len(w)} waypoints (needs one fewer)")
+    m = None
+    for k, row in enumerate(w):
+        if not isinstance(row, list) or not row or not all(isinstance(p, list) for p in row):
+            _fail(source, "waypoints", f"must be a [K+1][m][2] list: waypoints[{k}] must be a list of "
+                  f"pairs [x, y], got {echo(row)}")
+        if m is None:
+            m = len(row)
+            if m > MAX_ROBOTS:
+                _fail(source, "waypoints[0]", f"must move at most {MAX_ROBOTS} robots, got {m}")
+        elif len(row) != m:
+            _fail(source, f"waypoints[{k}]", f"moves {len(row)} robot{'s' * (len(row) != 1)}, waypoints[0] {m}")
+        for i, p in enumerate(row):
+            if len(p) != 2 or not (_is_number(p[0]) and _is_number(p[1])):
+                bad = next((j for j in (0, 1) if j < len(p) and not _is_number(p[j])), None)
+                where = f"waypoints[{k}][{i}]" + ("" if bad is None or len(p) != 2 else f"[{bad}]")
+                got = echo(p) if len(p) != 2 else echo(p[bad])
+                _fail(source, where, f"must be a pair [x, y] of numbers, got {got}")
+    for k, row in enumerate(w):
+        for i, p in enumerate(row):
+            for j in (0, 1):
+                v = p[j]
+                if not (abs(v) <= MAX_COORDINATE) or (type(v) is float and not math.isfinite(v)):
+                    _number(v, source, f"waypoints[{k}][{i}][{j}]", -MAX_COORDINATE, MAX_COORDINATE)
+    stats = None
+    if d.get("stats") is not None:
+        stats = _stats(d["stats"], source)
+    return cls(radius, margin, np.asarray(dur, float), np.asarray(w, float), limits[0], limits[1], stats)
+
+
+def _stats(s, source: str) -> PlanStats:
+    from .inputfile import echo
+
+    if not isinstance(s, dict):
+        _fail(source, "stats", f"must be an object, got {echo(s)}")
+    values = {}
+    for key, types in _STAT_TYPES.items():
+        if key not in s:
+            continue
+        v = s[key]
+        if v is None and key != "found":
+            values[key] = float("nan")
+            continue
+        ok = type(v) in types or (types == (int, float) and type(v) in (int, float))
+        if not ok or (type(v) in (int, float) and not type(v) is bool and not abs(v) <= 1e300):
+            _fail(source, f"stats.{key}", f"must be {'a boolean' if types == (bool,) else 'a number'}, got {echo(v)}")
+        values[key] = v
+    return PlanStats(**values, extra={k: v for k, v in s.items() if k not in _STAT_TYPES and k != "extra"})

@@ -163,9 +163,8 @@ def scatter(env: Environment, m: int, separation: float, clearance: float, rng: 
             if d <= separation * (1 + 1e-12):
                 raise ProblemError(
                     field,
-                    f"scatter: {m} robots do not fit the free space of {where} at spacing "
-                    f"2 * radius + margin = {separation:g}; this sampler fits at most {n} there "
-                    f"(a saturated Poisson-disc sample); lower robots.count or widen the region",
+                    f"scatter: {m} robots do not fit {where} at spacing {separation:g}; "
+                    f"at most {n} fit; lower robots.count",
                 )
             hi = d if hi is None else min(hi, d)
         # next spacing: the count goes about as 1 / d^2, kept inside the bracket
@@ -180,9 +179,8 @@ def scatter(env: Environment, m: int, separation: float, clearance: float, rng: 
         if len(pts) < m:
             raise ProblemError(
                 field,
-                f"scatter: {m} robots do not fit the free space of {where} at spacing "
-                f"2 * radius + margin = {separation:g}; this sampler fits at most {len(pts)} there "
-                f"(a saturated Poisson-disc sample); lower robots.count or widen the region",
+                f"scatter: {m} robots do not fit {where} at spacing {separation:g}; "
+                f"at most {len(pts)} fit; lower robots.count",
             )
         best = pts
     keep = np.sort(rng.choice(len(best), size=m, replace=False))

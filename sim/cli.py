@@ -1,8 +1,12 @@
 """The ``swarmform`` command line.
 
 Exit codes: 0 success; 1 no plan within the limits, or the physics run saw
-a contact or missed a target (the report is still written); 2 bad input
-(one line naming the file, the field and the reason; no traceback).
+a contact or missed a target (the report is still written); 2 wrong input
+(one line of at most 200 characters naming the file or option, the field
+and the reason; no traceback; nothing written), argument errors of every
+subcommand included; 3 an internal error (one line; ``swarmform --debug``
+shows the traceback).  No exception reaches the user as exit 1.  Output
+paths are checked before any input is read or any work done.
 """
 
 from __future__ import annotations
@@ -11,12 +15,37 @@ import argparse
 import sys
 from pathlib import Path
 
-from .argtypes import int_at_least, seconds
+from .argtypes import int_in, seconds
 from .words import plural
 
-__all__ = ["main"]
+__all__ = ["LINE_MAX", "main"]
 
-EXIT_OK, EXIT_FAIL, EXIT_INPUT = 0, 1, 2
+EXIT_OK, EXIT_FAIL, EXIT_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+
+LINE_MAX = 200
+"""The longest error line the command prints [characters]."""
+
+
+def _one_line(text: str, limit: int = LINE_MAX) -> str:
+    """``text`` on one line of at most ``limit`` characters.
+
+    A longer text keeps its beginning (the command, the file, the field)
+    and its end (most often what to do), cut in the middle with `` ... ``.
+    """
+    text = " ".join(str(text).split())
+    if len(text) <= limit:
+        return text
+    head = (limit * 3) // 5
+    return text[:head] + " ... " + text[-(limit - head - 5):]
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (exit 2), like wrong files."""
+
+    def error(self, message: str):
+        hint = f" (see {self.prog} --help)"
+        line = _one_line(f"{self.prog}: error: {message}", LINE_MAX - len(hint)) + hint
+        self.exit(EXIT_INPUT, _one_line(line) + "\n")
 
 
 def _cmd_formations(args) -> int:
@@ -46,10 +75,15 @@ def _load(path: str, seed: int | None):
 
 def _cmd_show(args) -> int:
     from .media import write_png
+    from .outputs import check_out_file
     from .render import draw_scenario
 
+    if args.output:
+        check_out_file(args.output, "--output")
     scenario, seed, _rng, problem = _load(args.scenario, args.seed)
     out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-scenario.png"
+    if not args.output:
+        check_out_file(out, "--output")
     title = f"{scenario.name}  seed {seed}"
     image = draw_scenario(problem, size=args.size, title=title)
     write_png(out, image)
@@ -94,13 +128,19 @@ def _cmd_plan(args) -> int:
     from planner import NoPlanFound
 
     from .legs import plan_legs
+    from .media import atomic_path
+    from .outputs import check_out_file
     from .scenario import build_legs, read_scenario
 
+    if args.output:
+        check_out_file(args.output, "--output")
     scenario = read_scenario(args.scenario)
     seed = scenario.seed if args.seed is None else args.seed
     rng = np.random.default_rng(seed)
     problem, targets = build_legs(scenario, rng)
     out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-plan.json"
+    if not args.output:
+        check_out_file(out, "--output")
     params = _params_with_time_limit(scenario, args.time_limit)
     mode = "auto" if params.auto else f"g={params.g} q={params.q}"
     print(f"{scenario.name} (seed {seed}): {problem.m} robots, "
@@ -113,7 +153,8 @@ def _cmd_plan(args) -> int:
         print(f"no plan: {exc}", file=sys.stderr)
         return EXIT_FAIL
     _print_stats(stats, problem.margin, auto=params.auto)
-    result.save(out, extra={"scenario": scenario.name, "seed": seed})
+    with atomic_path(out) as tmp:
+        tmp.write_text(result.to_json({"scenario": scenario.name, "seed": seed}), encoding="utf-8")
     print(f"wrote {out}")
     return EXIT_OK
 
@@ -160,30 +201,39 @@ def _version() -> str:
         return "(not installed)"
 
 
+_DEBUG_HELP = "on an internal error (exit 3), show the traceback"
+_SEED = int_in(0, 2**63 - 1)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="swarmform",
         description="Switch a swarm of disc robots between formations: plan with UPUMP, "
         "check the plan exactly, execute it in pymunk and render it.",
+        epilog="exit codes: 0 success; 1 no plan, or a contact or missed target in physics; "
+        "2 wrong input (one line); 3 internal error (one line; --debug shows the traceback)",
     )
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    p.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
+    common = _Parser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
 
-    f = sub.add_parser("formations", help="list the formations and their default robot counts")
+    f = sub.add_parser("formations", help="list the formations and their default robot counts", parents=[common])
     f.set_defaults(func=_cmd_formations)
 
-    s = sub.add_parser("show", help="draw a scenario (start hollow, target filled) to a PNG")
+    s = sub.add_parser("show", help="draw a scenario (start hollow, target filled) to a PNG", parents=[common])
     s.add_argument("scenario", help="scenario YAML file")
-    s.add_argument("--seed", type=int_at_least(0), help="override the scenario's seed")
+    s.add_argument("--seed", type=_SEED, help="override the scenario's seed")
     s.add_argument("-o", "--output", help="PNG file (default media/NAME-scenario.png)")
-    s.add_argument("--size", type=int, default=None,
-                   help="picture side in pixels (default: grows with the workspace and m, 480 to 960)")
+    s.add_argument("--size", type=int_in(64, 4096), default=None,
+                   help="picture side in pixels, 64 to 4096 (default: grows with the workspace and m, 480 to 960)")
     s.set_defaults(func=_cmd_show)
 
-    pl = sub.add_parser("plan", help="plan a scenario and write the plan JSON (with its stats)")
+    pl = sub.add_parser("plan", help="plan a scenario and write the plan JSON (with its stats)", parents=[common])
     pl.add_argument("scenario", help="scenario YAML file")
-    pl.add_argument("--seed", type=int_at_least(0), help="override the scenario's seed")
+    pl.add_argument("--seed", type=_SEED, help="override the scenario's seed")
     pl.add_argument("-o", "--output", help="plan JSON file (default media/NAME-plan.json)")
     pl.add_argument("--time-limit", type=seconds, help="override planner.time_limit [s]")
     pl.set_defaults(func=_cmd_plan)
@@ -192,9 +242,10 @@ def build_parser() -> argparse.ArgumentParser:
         "run",
         help="plan (or load a plan), validate, execute in physics, render; "
         "write DIR/NAME.json, the video and the page DIR/NAME.html",
+        parents=[common],
     )
     r.add_argument("scenario", help="scenario YAML file")
-    r.add_argument("--seed", type=int_at_least(0), help="override the scenario's (or the plan file's) seed")
+    r.add_argument("--seed", type=_SEED, help="override the scenario's (or the plan file's) seed")
     r.add_argument("--out", default="media", help="output folder (default media/)")
     r.add_argument("--no-render", action="store_true", help="skip the video")
     r.add_argument("--plan", help="execute this plan JSON as it is instead of planning")
@@ -205,26 +256,63 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .tune import add_tune_parser
 
-    add_tune_parser(sub)
+    t = add_tune_parser(sub)
+    t.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    from planner import PlanFileError, ProblemError
-
-    from .runner import InputError
-    from .scenario import ScenarioError
-
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run the command line; return its exit code (see the module docstring)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in argv
     try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        debug = debug or bool(getattr(args, "debug", False))
         return args.func(args)
-    except (ScenarioError, ProblemError, PlanFileError, InputError) as exc:
-        print(f"swarmform: error: {exc}", file=sys.stderr)
+    except _input_errors() as exc:
+        _say(f"swarmform: error: {exc}")
         return EXIT_INPUT
     except KeyboardInterrupt:
-        print("swarmform: interrupted", file=sys.stderr)
+        _say("swarmform: interrupted")
         return 130
+    except BrokenPipeError:  # standard output closed early (swarmform ... | head)
+        _silence_stdout()
+        return 141  # as if killed by SIGPIPE, as the shell reports it
+    except Exception as exc:  # noqa: BLE001 - anything else is a defect: one line, exit 3
+        if debug:
+            import traceback
+
+            traceback.print_exc()
+        kind = type(exc).__name__
+        hint = "" if debug else " (swarmform --debug ... shows the traceback)"
+        _say(_one_line(f"swarmform: internal error: {kind}: {exc}", LINE_MAX - len(hint)) + hint)
+        return EXIT_INTERNAL
+
+
+def _input_errors() -> tuple[type[BaseException], ...]:
+    from planner import PlanFileError, ProblemError
+
+    from .errors import InputError
+    from .scenario import ScenarioError
+
+    return ScenarioError, ProblemError, PlanFileError, InputError
+
+
+def _say(line: str) -> None:
+    try:
+        print(_one_line(line), file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _silence_stdout() -> None:
+    import os
+
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":

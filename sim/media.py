@@ -20,8 +20,8 @@ import importlib.util
 import itertools
 import math
 import os
+import secrets
 import struct
-import tempfile
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -56,12 +56,23 @@ def atomic_path(path: str | Path):
     Nothing half-written is ever left under the final name: on an error the
     temporary file is removed and an existing file at ``path`` is kept.  The
     file gets the permissions of a newly created file (``0o666`` less the
-    umask), not the owner-only ones of a temporary file.
+    umask), not the owner-only ones of a temporary file.  The temporary is
+    ``.NAME.tmp-PID-XXXXXXXX``; those of the same name whose process is gone
+    (killed before it could clean up) are removed first
+    (:func:`sim.outputs.remove_stale`).
     """
+    from .outputs import remove_stale, temp_name
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
+    remove_stale(path.parent, (path.name,))
+    while True:
+        tmp = path.parent / temp_name(path.name, secrets.token_hex(4))
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+            break
+        except FileExistsError:
+            continue
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())

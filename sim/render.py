@@ -37,7 +37,6 @@ from .canvas import (  # noqa: E402
     TEXT,
     WALL,
     Canvas,
-    fit_text,
     frame_size,
     label_font,
     robot_colors,

@@ -4,7 +4,13 @@
 the exit code (0: plan found and executed with zero contacts, every robot
 on a target; 1: no plan, or a contact, or a missed target, or a plan below
 the margin; the report is written in every one of these cases).  Bad input
-raises :class:`InputError` (exit 2) before anything is written.
+raises :class:`InputError` (exit 2) before anything is written: the output
+folder is checked first, then the scenario, the plan file (fully, against
+the scenario: radius, margin, robots, start, workspace, speed and
+acceleration limits) and, once the plan is known, the physics budget
+(:mod:`sim.budget`).  The run's files are written aside and replace the
+old ones together at the end (:class:`sim.outputs.OutputSet`), so an
+error or an interrupt leaves the previous run's files as they were.
 """
 
 from __future__ import annotations
@@ -18,10 +24,15 @@ import numpy as np
 
 from planner import NoPlanFound, Plan, PlanStats, min_clearance
 from planner.bounds import lower_bounds
+from planner.inputfile import echo_path
+from planner.plan import read_plan_file
 
+from .budget import check_physics_budget, check_validator_budget
+from .errors import InputError
 from .execute import SimReport, execute
 from .legs import plan_legs
 from .media import atomic_path, has_mp4, write_video
+from .outputs import OutputSet, check_out_dir
 from .progress import ProgressBar
 from .playback import MAX_VIDEO_SECONDS
 from .render import render_frames
@@ -31,10 +42,6 @@ from .series import write_series
 from .words import plural
 
 __all__ = ["InputError", "RunResult", "plan_summary", "run_scenario", "sim_summary"]
-
-
-class InputError(ValueError):
-    """Wrong input found by the run (one line naming the file, the field, the reason)."""
 
 
 @dataclass
@@ -74,15 +81,6 @@ def sim_summary(report: SimReport) -> dict:
     return report.to_dict()
 
 
-def _load_plan(path: str) -> tuple[Plan, int | None]:
-    """A plan file and the seed it was made with, when it records one."""
-    p = Plan.load(path)
-    raw = json.loads(Path(path).read_text(encoding="utf-8"))
-    seed = raw.get("seed")
-    ok = isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0
-    return p, seed if ok else None
-
-
 def run_scenario(
     path: str | Path,
     *,
@@ -103,17 +101,21 @@ def run_scenario(
     problem unless ``seed`` is given.  ``overrides`` set scenario fields
     (``{"robots.margin": 0.2}``, as ``--set``).
     """
+    out_dir = check_out_dir(out_dir)
     scenario = read_scenario(path, overrides=overrides)
     loaded = None
     if plan_path is not None:
-        loaded, recorded = _load_plan(str(plan_path))
-        seed = recorded if seed is None else seed
+        loaded, recorded = read_plan_file(plan_path)
+        seed = recorded.get("seed") if seed is None else seed
     seed = scenario.seed if seed is None else seed
     rng = np.random.default_rng(seed)
     problem, targets = build_legs(scenario, rng)
     leg_times = None
-    out_dir = Path(out_dir)
     name = scenario.name
+    outs = OutputSet(out_dir, name)
+    outs.check()
+    if loaded is not None:
+        loaded = _check_loaded(loaded, problem, scenario, str(plan_path))
     say = (lambda *a: print(*a, file=out)) if out is not None else (lambda *a: None)
     say(f"{name} (seed {seed}): {problem.m} robots, {scenario.describe()}")
 
@@ -121,88 +123,127 @@ def run_scenario(
                     "margin": problem.margin, "scenario_file": str(path)}
     if overrides:
         report["settings"] = dict(overrides)  # the --set values the scenario was read with
-    if loaded is not None:
-        result, stats = _check_loaded(loaded, problem, scenario, str(plan_path))
-        report["plan_file"] = str(plan_path)
-    else:
-        params = scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
-        try:
-            result, stats, leg_times = plan_legs(problem, targets, params, rng,
-                                                 holds=[t.hold for t in scenario.legs],
-                                                 labels=[t.describe() for t in scenario.legs])
-        except NoPlanFound as exc:
-            report["plan"] = plan_summary(exc.stats, auto=params.auto)
-            report["plan"]["error"] = str(exc)
-            report["sim"] = None
-            report["media"] = []
-            report["ok"] = False
-            say(f"  no plan in {exc.stats.planning_time_s:.2f} s: {exc}")
-            report["page"] = str(run_page(out_dir / f"{name}.html", report, problem))
-            say(f"  wrote {report['page']}")
-            report_path = _write_report(out_dir / f"{name}.json", report)
-            say(f"  wrote {report_path}")
-            return RunResult(report, 1, report_path)
-    valid = bool(stats.min_clearance >= problem.margin - 1e-9)
-    report["plan"] = plan_summary(stats, valid=valid, auto=loaded is None and params.auto)
-    made = f"planned in {stats.planning_time_s:.2f} s" if loaded is None else f"from {plan_path}"
-    say(f"  plan: {plural(stats.steps, 'step')} ({made}), makespan {stats.makespan_s:.1f} s, "
-        f"min clearance {stats.min_clearance:.4f} (margin {problem.margin:g}){'' if valid else '  BELOW THE MARGIN'}")
+    json_name, page_name, series_name = f"{name}.json", f"{name}.html", f"{name}-series.npz"
+    with outs:
+        if loaded is not None:
+            result, stats = loaded, _loaded_stats(loaded, problem)
+            report["plan_file"] = str(plan_path)
+        else:
+            params = scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
+            try:
+                result, stats, leg_times = plan_legs(problem, targets, params, rng,
+                                                     holds=[t.hold for t in scenario.legs],
+                                                     labels=[t.describe() for t in scenario.legs])
+            except NoPlanFound as exc:
+                report["plan"] = plan_summary(exc.stats, auto=params.auto)
+                report["plan"]["error"] = str(exc)
+                report["sim"] = None
+                report["media"] = []
+                report["ok"] = False
+                say(f"  no plan in {exc.stats.planning_time_s:.2f} s: {exc}")
+                report["page"] = str(outs.final(page_name))
+                run_page(outs.path(page_name), report, problem)
+                _write_report(outs.path(json_name), report)
+                outs.commit()
+                say(f"  wrote {outs.final(page_name)}")
+                say(f"  wrote {outs.final(json_name)}")
+                return RunResult(report, 1, outs.final(json_name))
+            check_physics_budget(problem.m, result.makespan, scenario.sim, scenario.path)
+        valid = bool(stats.min_clearance >= problem.margin - 1e-9)
+        report["plan"] = plan_summary(stats, valid=valid, auto=loaded is None and params.auto)
+        made = f"planned in {stats.planning_time_s:.2f} s" if loaded is None else f"from {plan_path}"
+        say(f"  plan: {plural(stats.steps, 'step')} ({made}), makespan {stats.makespan_s:.1f} s, "
+            f"min clearance {stats.min_clearance:.4f} (margin {problem.margin:g})"
+            f"{'' if valid else '  BELOW THE MARGIN'}")
+        report["plan"]["margin"] = problem.margin
+        if loaded is None:
+            report["plan"]["margin_extra"] = scenario.planner.margin_extra
+        else:  # what the plan file says it was planned with
+            report["plan"]["margin_extra"] = (loaded.stats.extra.get("margin_extra", 0.0) if loaded.stats else 0.0)
 
-    report["plan"]["margin"] = problem.margin
-    if loaded is None:
-        report["plan"]["margin_extra"] = scenario.planner.margin_extra
-    else:  # what the plan file says it was planned with
-        report["plan"]["margin_extra"] = (loaded.stats.extra.get("margin_extra", 0.0) if loaded.stats else 0.0)
-
-    bar = ProgressBar("  physics", enabled=progress)
-    sim = execute(problem, result, scenario.sim, rng, planner_params=scenario.planner,
-                  progress=lambda f: bar(f, f"of {result.makespan + scenario.sim.settle_time:.0f} s"))
-    bar.close()
-    report["sim"] = sim_summary(sim)
-    series = out_dir / f"{name}-series.npz"
-    with atomic_path(series) as tmp:
-        write_series(tmp, sim)
-    report["sim"]["series_file"] = series.name
-    say(f"  physics: {plural(len(sim.contacts), 'contact')}, min clearance {sim.min_clearance:.4f}, "
-        f"tracking error {sim.max_tracking_error:.2g}, reached {'yes' if sim.reached else 'no'}, "
-        f"{sim.sim_time_s:.1f} s simulated in {sim.wall_time_s:.1f} s")
-    say(f"  physics verdict: {sim.verdict}")
-
-    media: list[Path] = []
-    if render and "mp4" in scenario.render.formats and not has_mp4():
-        say("  (no MP4: install imageio-ffmpeg, e.g. pip install -e '.[video]')")
-    if render:
-        legs = None if leg_times is None or len(targets) < 2 else list(zip(leg_times[:-1], targets))
-        frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
-                               step_times=result.times, title=name, targets=legs)
-        report["video"] = frames.timing.to_dict()
-        if frames.timing.raised:
-            say(f"  video: {frames.speedup:g}x speed, raised to keep it within {MAX_VIDEO_SECONDS:g} s")
-        bar = ProgressBar("  video", enabled=progress)
-        media = write_video(out_dir / name, frames, scenario.render.fps, scenario.render.formats, progress=bar)
+        bar = ProgressBar("  physics", enabled=progress)
+        sim = execute(problem, result, scenario.sim, rng, planner_params=scenario.planner,
+                      progress=lambda f: bar(f, f"of {result.makespan + scenario.sim.settle_time:.0f} s"))
         bar.close()
-        for m in media:
-            say(f"  wrote {m}")
-    report["media"] = [str(m) for m in media]
-    code = 0 if (sim.ok and valid) else 1
-    report["ok"] = code == 0
-    report["page"] = str(run_page(out_dir / f"{name}.html", report, problem, result, sim, media))
-    say(f"  wrote {report['page']}")
-    report_path = _write_report(out_dir / f"{name}.json", report)
+        report["sim"] = sim_summary(sim)
+        write_series(outs.path(series_name), sim)
+        report["sim"]["series_file"] = series_name
+        say(f"  physics: {plural(len(sim.contacts), 'contact')}, min clearance {sim.min_clearance:.4f}, "
+            f"tracking error {sim.max_tracking_error:.2g}, reached {'yes' if sim.reached else 'no'}, "
+            f"{sim.sim_time_s:.1f} s simulated in {sim.wall_time_s:.1f} s")
+        say(f"  physics verdict: {sim.verdict}")
+
+        media: list[Path] = []
+        if render and "mp4" in scenario.render.formats and not has_mp4():
+            say("  (no MP4: install imageio-ffmpeg, e.g. pip install -e '.[video]')")
+        if render:
+            legs = None if leg_times is None or len(targets) < 2 else list(zip(leg_times[:-1], targets))
+            frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
+                                   step_times=result.times, title=name, targets=legs)
+            report["video"] = frames.timing.to_dict()
+            if frames.timing.raised:
+                say(f"  video: {frames.speedup:g}x speed, raised to keep it within {MAX_VIDEO_SECONDS:g} s")
+            bar = ProgressBar("  video", enabled=progress)
+            written = write_video(outs.stem, frames, scenario.render.fps, scenario.render.formats, progress=bar)
+            bar.close()
+            media = [outs.final(p.name) for p in written]
+            staged = list(written)
+        else:
+            staged = []
+        report["media"] = [str(m) for m in media]
+        code = 0 if (sim.ok and valid) else 1
+        report["ok"] = code == 0
+        report["page"] = str(outs.final(page_name))
+        run_page(outs.path(page_name), report, problem, result, sim, staged)
+        _write_report(outs.path(json_name), report)
+        outs.commit()
+    for f in (*media, outs.final(series_name), outs.final(page_name)):
+        say(f"  wrote {f}")
+    report_path = outs.final(json_name)
     say(f"  wrote {report_path}")
     return RunResult(report, code, report_path, media, sim, result)
 
 
-def _check_loaded(p: Plan, problem, scenario: Scenario, source: str) -> tuple[Plan, PlanStats]:
-    """Check a loaded plan fits the scenario's problem; compute its exact stats."""
+def _check_loaded(p: Plan, problem, scenario: Scenario, source: str) -> Plan:
+    """Check a loaded plan against the scenario's problem; raise :class:`InputError` naming the field.
+
+    The plan must move the scenario's robots from their start, with the
+    scenario's radius and margin, inside its workspace, and within its
+    speed and acceleration limits (each step's peak under minimum jerk);
+    its physics and exact validation must fit their budgets.
+    """
+    src, scn = echo_path(source, 70), echo_path(scenario.path, 50)
     if p.m != problem.m:
-        raise InputError(f"{source}: waypoints: the plan moves {p.m} robots but "
-                         f"{scenario.path} has {problem.m}")
+        raise InputError(f"{src}: waypoints: the plan moves {p.m} robot{'s' * (p.m != 1)} but {scn} "
+                         f"has {problem.m}")
+    for key, mine in (("radius", problem.radius), ("margin", problem.margin)):
+        theirs = getattr(p, key)
+        if not np.isclose(theirs, mine, rtol=1e-9, atol=1e-12):
+            raise InputError(f"{src}: {key}: is {theirs:.6g} but {scn} has robots.{key} {mine:.6g}")
     gap = np.linalg.norm(p.start - problem.start, axis=1)
     if gap.max() > 1e-6:
         i = int(np.argmax(gap))
-        raise InputError(f"{source}: waypoints[0][{i}]: robot {i} does not start where {scenario.path} "
+        raise InputError(f"{src}: waypoints[0][{i}]: robot {i} does not start where {scn} "
                          f"puts it (pass the --seed the plan was made with)")
+    w = p.waypoints
+    out = (w[..., 0] < 0) | (w[..., 0] > problem.width) | (w[..., 1] < 0) | (w[..., 1] > problem.height)
+    if out.any():
+        k, i = (int(v) for v in np.argwhere(out)[0])
+        raise InputError(f"{src}: waypoints[{k}][{i}]: ({w[k, i, 0]:.6g}, {w[k, i, 1]:.6g}) lies outside "
+                         f"the {problem.width:g} x {problem.height:g} workspace")
+    bad = p.limit_violation(problem.max_speed, problem.max_accel)
+    if bad is not None:
+        k, i, kind, need, limit = bad
+        key = "max_speed" if kind == "speed" else "max_accel"
+        raise InputError(f"{src}: durations[{k}]: step {k} moves robot {i} at a peak {kind} of {need:.4g}, "
+                         f"over robots.{key} = {limit:g} (raise the duration)")
+    check_physics_budget(p.m, p.makespan, scenario.sim, source)
+    check_validator_budget(p, source)
+    return p
+
+
+def _loaded_stats(p: Plan, problem) -> PlanStats:
+    """The exact stats of a loaded plan (its own recorded planning stats kept)."""
     c = min_clearance(problem, p)
     stats = PlanStats(found=True, steps=p.steps, makespan_s=p.makespan, path_length=p.path_length,
                       min_clearance=c.value)
@@ -210,7 +251,7 @@ def _check_loaded(p: Plan, problem, scenario: Scenario, source: str) -> tuple[Pl
         stats.planning_time_s, stats.g, stats.q = p.stats.planning_time_s, p.stats.g, p.stats.q
         stats.graphs, stats.connections = p.stats.graphs, p.stats.connections
     stats.makespan_lower_bound_s, stats.path_length_lower_bound = lower_bounds(problem)
-    return p, stats
+    return stats
 
 
 def _write_report(path: Path, report: dict) -> Path:

@@ -1,8 +1,14 @@
 """Scenario files: strict YAML loading into frozen specs, then a Problem.
 
 ``read_scenario(path)`` parses and checks the file (unknown keys, wrong
-types and impossible values are rejected with a :class:`ScenarioError`
-naming the file, the field and the reason).  ``build_problem(scenario,
+types and values outside each field's documented range are rejected with
+a :class:`ScenarioError` naming the file, the field and the reason, with
+the value received echoed in at most about 80 characters).  The file is
+read only when it is a regular file of at most :data:`MAX_FILE_BYTES`; its
+YAML may not use anchors, aliases, tags or nesting deeper than
+:data:`sim.yamlfile.MAX_DEPTH` (:mod:`sim.yamlfile`).  Every field's range
+is chosen so that time and memory stay bounded; the README's input table
+lists them (unit, default, range), and a test holds it to this code.  ``build_problem(scenario,
 rng)`` turns the spec into a :class:`planner.Problem`: it draws the random
 obstacles, the formations' rotations and centres from ``rng`` and checks
 the placements (robot index and what it hits).
@@ -17,17 +23,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from planner.formations import DEFAULT_COUNTS, place_formation
-from planner.geometry import Environment, segment_segment_distance
+from planner.geometry import Environment
+from planner.inputfile import UnreadableFile, echo, echo_key, echo_path, read_text
 from planner.params import PlannerParams
 from planner.problem import Circle, Polygon, Problem, ProblemError, check_placement
 
 from .params import MAX_FPS, MAX_RENDER_SIZE, Failure, Impulse, Noise, Pushes, Recovery, RenderParams, SimParams
+from .yamlfile import YamlRefused, load_yaml
 
 __all__ = [
     "FormationSpec",
+    "MAX_FILE_BYTES",
     "MAX_HOLD",
     "MAX_TARGETS",
     "PaperRef",
@@ -40,6 +48,24 @@ __all__ = [
 ]
 
 
+MAX_FILE_BYTES = 256 << 10
+"""The largest scenario file read [bytes]: 256 KiB, room for 1000 explicit start and target
+points and 4096 polygon vertices (the biggest shipped scenario is under 1 KiB)."""
+
+# Bounds shared by several fields (see the README's input table).
+_MAX_SIDE = 1000.0  # workspace side [units]
+_MAX_ROBOTS = 1000
+# Obstacles of a scenario (random ones included), and their vertices (a random
+# obstacle counts as 8, the most it has).  The planner's corner-visibility
+# graph holds temporaries of about (corners^2 x edges) floats: 32 random
+# obstacles of up to 8 vertices peaked at 1.1 GB in dense workspaces.
+_MAX_OBSTACLES = 32
+_MAX_VERTICES = 192
+_RANDOM_VERTICES = 8
+_MAX_SEED = 2**63 - 1
+_MAX_NAME = 64  # characters
+
+
 class ScenarioError(ValueError):
     """A bad scenario file: ``str()`` is one line ``FILE: FIELD: reason``."""
 
@@ -47,7 +73,7 @@ class ScenarioError(ValueError):
         self.path = str(path)
         self.field = field
         self.reason = reason
-        super().__init__(f"{self.path}: {field}: {reason}")
+        super().__init__(f"{echo_path(self.path)}: {field}: {reason}")
 
 
 @dataclass(frozen=True)
@@ -146,37 +172,6 @@ class Scenario:
 
 
 # ----------------------------------------------------------------------------
-# YAML with duplicate keys rejected
-
-
-class _StrictLoader(yaml.SafeLoader):
-    pass
-
-
-def _construct_mapping(loader, node, deep=False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        try:
-            hash(key)
-        except TypeError:
-            raise yaml.constructor.ConstructorError(
-                None, None, "a mapping key must be a plain value, not a list or mapping", key_node.start_mark
-            ) from None
-        if key in seen:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"duplicate key {key!r}", key_node.start_mark
-            )
-        seen.add(key)
-    return yaml.SafeLoader.construct_mapping(loader, node, deep)
-
-
-_StrictLoader.add_constructor(
-    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping
-)
-
-
-# ----------------------------------------------------------------------------
 # field readers
 
 
@@ -195,76 +190,100 @@ class _Reader:
         for key in value:
             if key not in allowed:
                 hint = ", ".join(allowed)
-                where = f"{field}.{key}" if field else str(key)
-                self.fail(where, f"unknown key (allowed here: {hint})")
+                where = f"{field}.{echo_key(key)}" if field else echo_key(key)
+                self.fail(where, f"unknown key; allowed here: {hint}")
         return value
 
-    def number(self, value, field, *, gt=None, ge=None, le=None) -> float:
+    def number(self, value, field, *, gt=None, ge=None, le=None, lt=None) -> float:
+        """A finite number (not a boolean) within the given bounds."""
+        span = _span(gt, ge, le, lt)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(field, f"must be a number, got {_kind(value)}")
-        try:
-            value = float(value)
-        except OverflowError:
-            self.fail(field, "is too large a number")
+            self.fail(field, f"must be a number{span}, got {_kind(value)}{_numeric_text_hint(value)}")
+        if isinstance(value, int) and value.bit_length() > 1000:
+            self.fail(field, f"must be a number{span}, got {_kind(value)}")
+        value = float(value)
         if not math.isfinite(value):
-            self.fail(field, f"must be finite, got {value}")
-        if gt is not None and not value > gt:
-            self.fail(field, f"must be > {gt:g}, got {value:g}")
-        if ge is not None and not value >= ge:
-            self.fail(field, f"must be >= {ge:g}, got {value:g}")
-        if le is not None and not value <= le:
-            self.fail(field, f"must be <= {le:g}, got {value:g}")
+            self.fail(field, f"must be a finite number{span}, got {value}")
+        if ((gt is not None and not value > gt) or (ge is not None and not value >= ge)
+                or (le is not None and not value <= le) or (lt is not None and not value < lt)):
+            self.fail(field, f"must be a number{span}, got {value:g}")
         return value
 
-    def integer(self, value, field, *, ge=None) -> int:
+    def integer(self, value, field, *, ge=None, le=None) -> int:
+        """An integer (not a boolean, not a float) within ``[ge, le]``."""
+        span = _span(None, ge, le, None)
         if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(field, f"must be an integer, got {_kind(value)}")
-        if ge is not None and value < ge:
-            self.fail(field, f"must be an integer >= {ge}, got {value}")
+            self.fail(field, f"must be an integer{span}, got {_kind(value)}")
+        if (ge is not None and value < ge) or (le is not None and value > le):
+            self.fail(field, f"must be an integer{span}, got {_kind(value).removeprefix('number ')}")
         return int(value)
 
-    def int_or_auto(self, value, field, *, ge=1) -> int | None:
+    def int_or_auto(self, value, field, *, ge=1, le=None) -> int | None:
         if value == "auto":
             return None
         if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(field, f"must be an integer >= {ge} or 'auto', got {_kind(value)}")
-        return self.integer(value, field, ge=ge)
+            self.fail(field, f"must be 'auto' or an integer{_span(None, ge, le, None)}, got {_kind(value)}")
+        return self.integer(value, field, ge=ge, le=le)
 
     def boolean(self, value, field) -> bool:
         if not isinstance(value, bool):
             self.fail(field, f"must be true or false, got {_kind(value)}")
         return value
 
-    def pair(self, value, field, *, positive=False) -> tuple[float, float]:
+    def pair(self, value, field, **bounds) -> tuple[float, float]:
+        """``[x, y]``: two numbers, each within ``bounds`` (as for :meth:`number`)."""
         if not isinstance(value, (list, tuple)) or len(value) != 2:
             self.fail(field, f"must be a pair [x, y], got {_kind(value)}")
-        kw = {"gt": 0.0} if positive else {}
         return (
-            self.number(value[0], f"{field}[0]", **kw),
-            self.number(value[1], f"{field}[1]", **kw),
+            self.number(value[0], f"{field}[0]", **bounds),
+            self.number(value[1], f"{field}[1]", **bounds),
         )
+
+    def inside(self, value, field, width, height) -> tuple[float, float]:
+        """A point ``[x, y]`` of the workspace ``[0, width] x [0, height]``."""
+        x, y = self.pair(value, field)
+        if not (0 <= x <= width and 0 <= y <= height):
+            self.fail(field, f"({x:g}, {y:g}) lies outside the {width:g} x {height:g} workspace")
+        return x, y
+
+
+def _bound(v) -> str:
+    return "2^63 - 1" if v == _MAX_SEED else f"{v:g}"
+
+
+def _span(gt, ge, le, lt) -> str:
+    """`` in [a, b]``, `` > a`` and the like: the allowed range, for a message."""
+    low = f"({_bound(gt)}" if gt is not None else f"[{_bound(ge)}" if ge is not None else None
+    high = f"{_bound(le)}]" if le is not None else f"{_bound(lt)})" if lt is not None else None
+    if low and high:
+        return f" in {low}, {high}"
+    if low:
+        return f" {'>' if gt is not None else '>='} {low[1:]}"
+    if high:
+        return f" {'<=' if le is not None else '<'} {high[:-1]}"
+    return ""
+
+
+def _numeric_text_hint(value) -> str:
+    """For text that reads as a number (YAML takes ``1e3`` for text): how to write it."""
+    if isinstance(value, str) and len(value) <= 40:
+        try:
+            float(value)
+        except ValueError:
+            return ""
+        return " (text; write a number such as 1.0e+3 without quotes)"
+    return ""
 
 
 def _kind(value: Any) -> str:
-    if value is None:
-        return "nothing (null)"
-    if isinstance(value, bool):
-        return f"boolean {value}"
-    if isinstance(value, str):
-        return f"string {value!r}"
-    if isinstance(value, (int, float)):
-        return f"number {value!r}"
-    if isinstance(value, list):
-        return f"a list of {len(value)}"
-    if isinstance(value, dict):
-        return "a mapping"
-    return type(value).__name__
+    """The value received, for a message: at most about 80 characters."""
+    return echo(value)
 
 
 _TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "targets", "planner", "sim",
         "render", "paper")
 MAX_TARGETS = 16  # legs of a chained scenario
-_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+_NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 
 
 def read_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
@@ -287,20 +306,13 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
     path = Path(path)
     r = _Reader(str(path))
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        r.fail("file", "no such file")
-    except IsADirectoryError:
-        r.fail("file", "is a directory, not a scenario file")
-    except (OSError, UnicodeDecodeError) as exc:
-        r.fail("file", f"cannot be read ({exc.__class__.__name__}: {exc})")
+        text = read_text(path, MAX_FILE_BYTES)
+    except UnreadableFile as exc:
+        r.fail("file", str(exc))
     try:
-        doc = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "yaml"
-        problem = getattr(exc, "problem", None) or str(exc)
-        r.fail(where, f"invalid YAML: {' '.join(str(problem).split())}")
+        doc = load_yaml(text)
+    except YamlRefused as exc:
+        r.fail(exc.where, exc.reason)
     if doc is None:
         r.fail("file", "is empty; expected a mapping with at least start and target")
     if not isinstance(doc, dict):
@@ -317,18 +329,19 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
     if "target" not in doc and "targets" not in doc:
         r.fail("target", "is required (or targets, a list of formations reached in turn)")
 
-    name = doc.get("name", path.stem)
-    if not isinstance(name, str) or not _NAME_RE.match(name):
-        r.fail("name", f"must be a file-name-safe string (letters, digits, . _ -), got {_kind(name)}")
-    seed = r.integer(doc.get("seed", 0), "seed", ge=0)
-    width, height = r.pair(doc.get("workspace", [40, 40]), "workspace", positive=True)
+    name = doc["name"] if "name" in doc else path.stem
+    if not isinstance(name, str) or not _NAME_RE.fullmatch(name) or len(name) > _MAX_NAME:
+        r.fail("name", f"must be 1 to {_MAX_NAME} letters, digits, '.', '_', '-' (a letter or digit "
+               f"first), got {_kind(name)}")
+    seed = r.integer(doc.get("seed", 0), "seed", ge=0, le=_MAX_SEED)
+    width, height = r.pair(doc.get("workspace", [40, 40]), "workspace", ge=1, le=_MAX_SIDE)
 
     rob = r.mapping(doc.get("robots"), "robots", ("radius", "margin", "count", "max_speed", "max_accel"))
-    radius = r.number(rob.get("radius", 1.0), "robots.radius", gt=0)
-    margin = r.number(rob.get("margin", 0.1), "robots.margin", ge=0)
-    count = None if rob.get("count") is None else r.integer(rob["count"], "robots.count", ge=1)
-    max_speed = r.number(rob.get("max_speed", 2.0), "robots.max_speed", gt=0)
-    max_accel = r.number(rob.get("max_accel", 2.0), "robots.max_accel", gt=0)
+    radius = r.number(rob.get("radius", 1.0), "robots.radius", ge=0.01, le=100)
+    margin = r.number(rob.get("margin", 0.1), "robots.margin", ge=0, le=100)
+    count = None if rob.get("count") is None else r.integer(rob["count"], "robots.count", ge=1, le=_MAX_ROBOTS)
+    max_speed = r.number(rob.get("max_speed", 2.0), "robots.max_speed", ge=0.001, le=1000)
+    max_accel = r.number(rob.get("max_accel", 2.0), "robots.max_accel", ge=0.001, le=10000)
 
     obstacles = _read_obstacles(r, doc.get("obstacles", []), width, height)
     base = path.parent
@@ -345,6 +358,8 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
         target = _read_placement(r, doc["target"], "target", width, height, base)
     specs = [("start", start)] + ([(f"targets[{i}]", t) for i, t in enumerate(targets)] or [("target", target)])
     count = _resolve_count(r, count, specs, width, height, 2 * radius + margin, radius + margin)
+    sim = _read_sim(r, doc.get("sim"), count)
+    _check_sampling(r, radius, max_speed, sim)
 
     return Scenario(
         path=str(path),
@@ -361,7 +376,7 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
         start=start,
         target=target,
         planner=_read_planner(r, doc.get("planner")),
-        sim=_read_sim(r, doc.get("sim"), count),
+        sim=sim,
         render=_read_render(r, doc.get("render")),
         paper=_read_paper(r, doc.get("paper")),
         targets=targets,
@@ -379,9 +394,16 @@ def _read_paper(r: _Reader, value) -> PaperRef | None:
         r.fail("paper.table", f"must be II or III, got {_kind(v['table'])}")
     return PaperRef(
         table=v["table"],
-        row=r.integer(v["row"], "paper.row", ge=1),
-        time_s=r.number(v["time_s"], "paper.time_s", gt=0),
+        row=r.integer(v["row"], "paper.row", ge=1, le=1000),
+        time_s=r.number(v["time_s"], "paper.time_s", gt=0, le=1e6),
     )
+
+
+def _check_sampling(r: _Reader, radius: float, max_speed: float, sim: SimParams) -> None:
+    """A robot at full speed moves at most half its radius between two monitor samples."""
+    if max_speed * sim.dt > radius / 2:
+        r.fail("sim.dt", f"must be <= robots.radius / (2 max_speed) = {radius / (2 * max_speed):.3g} s "
+               f"(the monitor samples every dt), got {sim.dt:g}")
 
 
 def _read_obstacles(r: _Reader, value, width, height) -> tuple:
@@ -389,58 +411,84 @@ def _read_obstacles(r: _Reader, value, width, height) -> tuple:
         return ()
     if not isinstance(value, list):
         r.fail("obstacles", f"must be a list, got {_kind(value)}")
+    if len(value) > _MAX_OBSTACLES:
+        r.fail("obstacles", f"must hold at most {_MAX_OBSTACLES} obstacles, got {len(value)}")
     out = []
+    total, vertices = 0, 0
     for k, item in enumerate(value):
         f = f"obstacles[{k}]"
         if not isinstance(item, dict) or len(item) != 1:
-            r.fail(f, "must be a mapping with exactly one of polygon, circle, random")
+            r.fail(f, f"must be a mapping with exactly one of polygon, circle, random, got {_kind(item)}")
         (kind, body), = item.items()
         if kind == "polygon":
             out.append(_read_polygon(r, body, f"{f}.polygon", width, height))
+            total += 1
+            vertices += len(body)
         elif kind == "circle":
             c = r.mapping(body, f"{f}.circle", ("center", "radius"))
             if "center" not in c or "radius" not in c:
                 r.fail(f"{f}.circle", "needs center and radius")
-            center = r.pair(c["center"], f"{f}.circle.center")
-            rad = r.number(c["radius"], f"{f}.circle.radius", gt=0)
-            if not (0 <= center[0] <= width and 0 <= center[1] <= height):
-                r.fail(f"{f}.circle.center", f"({center[0]:g}, {center[1]:g}) lies outside the workspace")
+            center = r.inside(c["center"], f"{f}.circle.center", width, height)
+            rad = r.number(c["radius"], f"{f}.circle.radius", gt=0, le=max(width, height))
             out.append(Circle(center, rad))
+            total += 1
         elif kind == "random":
             c = r.mapping(body, f"{f}.random", ("count", "size", "seed"))
-            n = r.integer(c.get("count", 3), f"{f}.random.count", ge=1)
-            size = r.pair(c.get("size", [4, 8]), f"{f}.random.size", positive=True)
+            n = r.integer(c.get("count", 3), f"{f}.random.count", ge=1, le=_MAX_VERTICES // _RANDOM_VERTICES)
+            size = r.pair(c.get("size", [4, 8]), f"{f}.random.size", gt=0, le=_MAX_SIDE)
             if size[0] > size[1]:
-                r.fail(f"{f}.random.size", f"must be [min, max] with min <= max, got {list(size)}")
+                r.fail(f"{f}.random.size", f"must be [min, max] with min <= max, got [{size[0]:g}, {size[1]:g}]")
             if size[1] >= min(width, height):
                 r.fail(f"{f}.random.size", f"max {size[1]:g} does not fit the workspace")
-            seed = None if c.get("seed") is None else r.integer(c["seed"], f"{f}.random.seed", ge=0)
+            seed = None if c.get("seed") is None else r.integer(c["seed"], f"{f}.random.seed", ge=0, le=_MAX_SEED)
             out.append(RandomObstacles(n, size, seed))
+            total += n
+            vertices += _RANDOM_VERTICES * n
         else:
-            r.fail(f"{f}.{kind}", "unknown obstacle kind (allowed: polygon, circle, random)")
+            r.fail(f"{f}.{echo_key(kind)}", "unknown obstacle kind (allowed: polygon, circle, random)")
+        if total > _MAX_OBSTACLES:
+            r.fail(f, f"brings the obstacles to {total}; a scenario may have at most {_MAX_OBSTACLES}")
+        if vertices > _MAX_VERTICES:
+            r.fail(f, f"brings the obstacle vertices to {vertices} (a random obstacle counts "
+                   f"{_RANDOM_VERTICES}); a scenario may have at most {_MAX_VERTICES}")
     return tuple(out)
 
 
 def _read_polygon(r: _Reader, body, f: str, width, height) -> Polygon:
-    if not isinstance(body, list) or len(body) < 3:
-        r.fail(f, f"must be a list of at least 3 points [x, y], got {_kind(body)}")
-    pts = np.array([r.pair(p, f"{f}[{i}]") for i, p in enumerate(body)])
-    for i, (x, y) in enumerate(pts):
-        if not (0 <= x <= width and 0 <= y <= height):
-            r.fail(f"{f}[{i}]", f"({x:g}, {y:g}) lies outside the {width:g} x {height:g} workspace")
-    x, y = pts[:, 0], pts[:, 1]
-    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
-    if area <= 1e-12:
-        r.fail(f, "has zero area")
-    k = len(pts)
-    a, b = pts, np.roll(pts, -1, axis=0)
-    for i in range(k):
-        for j in range(i + 1, k):
-            if j == i + 1 or (i == 0 and j == k - 1):
-                continue
-            if segment_segment_distance(a[i], b[i], a[j], b[j]) <= 1e-12:
-                r.fail(f, f"is not simple: edge {i} meets edge {j}")
+    """A simple polygon of 3 to 192 vertices in the workspace (checked in O(k log k))."""
+    if not isinstance(body, list) or not 3 <= len(body) <= _MAX_VERTICES:
+        r.fail(f, f"must be a list of 3 to {_MAX_VERTICES} points [x, y], got {_kind(body)}")
+    pts = np.array([r.inside(p, f"{f}[{i}]", width, height) for i, p in enumerate(body)])
+    reason = _polygon_defect(pts)
+    if reason:
+        r.fail(f, reason)
     return Polygon(pts)
+
+
+def _polygon_defect(pts: np.ndarray) -> str | None:
+    """Why ``pts`` is not a simple polygon of positive area, or None.
+
+    Shapely (GEOS) decides simplicity with a sweep over the edges, in
+    O(k log k) for k vertices.  A ring whose edges cross is reported as
+    self-intersecting (a bowtie too, whose signed area may be zero); one that
+    does not cross but encloses no area as having zero area.
+    """
+    import shapely
+
+    same = np.flatnonzero(np.all(pts == np.roll(pts, -1, axis=0), axis=1))
+    if len(same):
+        i = int(same[0])
+        return f"repeats a vertex: points {i} and {(i + 1) % len(pts)} are the same (the ring closes by itself)"
+    ring = shapely.LinearRing(pts)
+    if not shapely.is_simple(ring):
+        near = ""
+        found = re.search(r"\[(\S+) (\S+)\]", shapely.is_valid_reason(shapely.Polygon(pts)))
+        if found:
+            near = f" near ({float(found.group(1)):.6g}, {float(found.group(2)):.6g})"
+        return f"is self-intersecting: two of its edges cross or touch{near}; it must be a simple polygon"
+    if shapely.area(shapely.Polygon(pts)) <= 1e-12:
+        return "has zero area (its vertices are collinear)"
+    return None
 
 
 _SCATTER = "scatter"
@@ -458,8 +506,8 @@ def _read_placement(r: _Reader, value, f: str, width, height, base: Path = Path(
     if "points" in value:
         r.mapping(value, f, ("points",) + extra)
         pts = value["points"]
-        if not isinstance(pts, list) or len(pts) < 1:
-            r.fail(f"{f}.points", f"must be a non-empty list of [x, y], got {_kind(pts)}")
+        if not isinstance(pts, list) or not 1 <= len(pts) <= _MAX_ROBOTS:
+            r.fail(f"{f}.points", f"must be a list of 1 to {_MAX_ROBOTS} points [x, y], got {_kind(pts)}")
         return FormationSpec(points=tuple(r.pair(p, f"{f}.points[{i}]") for i, p in enumerate(pts)), hold=hold)
     v = r.mapping(value, f, ("formation", "scale", "rotation", "center", "region") + extra)
     if "formation" not in v:
@@ -472,8 +520,8 @@ def _read_placement(r: _Reader, value, f: str, width, height, base: Path = Path(
         name = "text" if text is not None else "strokes"
     elif not isinstance(name, str) or name not in DEFAULT_COUNTS and name != _SCATTER:
         known = ", ".join([*DEFAULT_COUNTS, _SCATTER])
-        r.fail(f"{f}.formation", f"unknown formation {_short(name)} (known: {known}; or a mapping "
-                                 f"{{text: ...}} or {{strokes: ...}})")
+        r.fail(f"{f}.formation", f"unknown formation (known: {known}; or a mapping "
+                                 f"{{text: ...}} or {{strokes: ...}}), got {_kind(name)}")
     if name == _SCATTER:
         for key in ("scale", "rotation", "center"):
             if key in v:
@@ -489,20 +537,13 @@ def _read_placement(r: _Reader, value, f: str, width, height, base: Path = Path(
     sc = v.get("scale", "fit" if drawn else 0.3)
     scale = None if sc == "fit" else r.number(sc, f"{f}.scale", gt=0, le=1)
     rot = v.get("rotation", 0.0 if drawn else "random")
-    rotation = None if rot == "random" else r.number(rot, f"{f}.rotation")
+    rotation = None if rot == "random" else r.number(rot, f"{f}.rotation", ge=-360, le=360)
     cen = v.get("center", "random")
     center = None
     if cen != "random":
-        center = r.pair(cen, f"{f}.center")
-        if not (0 <= center[0] <= width and 0 <= center[1] <= height):
-            r.fail(f"{f}.center", f"({center[0]:g}, {center[1]:g}) lies outside the workspace")
+        center = r.inside(cen, f"{f}.center", width, height)
     return FormationSpec(formation=name, scale=scale, rotation=rotation, center=center, text=text, font=font,
                          fill=fill, strokes=strokes, hold=hold)
-
-
-def _short(value, limit: int = 80) -> str:
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _read_drawing(r: _Reader, value: dict, f: str, base: Path):
@@ -542,7 +583,7 @@ def _read_drawing(r: _Reader, value: dict, f: str, base: Path):
         text = str(text)  # text: 2024 reads as a number
     fill = value.get("fill", "strokes")
     if fill not in ("strokes", "area"):
-        r.fail(f"{f}.fill", f"must be strokes or area, got {_short(fill)}")
+        r.fail(f"{f}.fill", f"must be strokes or area, got {_kind(fill)}")
     font = value.get("font")
     if font is not None:
         if not isinstance(font, str) or not font or len(font) > 4096:
@@ -603,11 +644,11 @@ def _read_planner(r: _Reader, value) -> PlannerParams:
     v = r.mapping(value, "planner", tuple(f.name for f in fields(PlannerParams)))
     d = PlannerParams()
     return PlannerParams(
-        g=r.int_or_auto(v.get("g", "auto"), "planner.g"),
-        q=r.int_or_auto(v.get("q", "auto"), "planner.q"),
-        time_limit=r.number(v.get("time_limit", d.time_limit), "planner.time_limit", gt=0),
-        n=r.int_or_auto(v.get("n", "auto"), "planner.n", ge=2),
-        extra=r.int_or_auto(v.get("extra", "auto"), "planner.extra", ge=0),
+        g=r.int_or_auto(v.get("g", "auto"), "planner.g", le=100),
+        q=r.int_or_auto(v.get("q", "auto"), "planner.q", le=100_000),
+        time_limit=r.number(v.get("time_limit", d.time_limit), "planner.time_limit", gt=0, le=3600),
+        n=r.int_or_auto(v.get("n", "auto"), "planner.n", ge=2, le=2000),
+        extra=r.int_or_auto(v.get("extra", "auto"), "planner.extra", ge=0, le=1000),
         concurrent=r.boolean(v.get("concurrent", d.concurrent), "planner.concurrent"),
         margin_extra=r.number(v.get("margin_extra", d.margin_extra), "planner.margin_extra", ge=0, le=100),
     )
@@ -619,14 +660,14 @@ def _read_sim(r: _Reader, value, count: int) -> SimParams:
     rate = v.get("control_rate", d.control_rate)
     rate = None if rate is None or (rate == 0 and not isinstance(rate, bool)) else rate
     return SimParams(
-        mass=r.number(v.get("mass", d.mass), "sim.mass", gt=0),
-        kp=r.number(v.get("kp", d.kp), "sim.kp", gt=0),
-        kd=r.number(v.get("kd", d.kd), "sim.kd", ge=0),
-        dt=r.number(v.get("dt", d.dt), "sim.dt", gt=0, le=0.1),
-        substeps=r.integer(v.get("substeps", d.substeps), "sim.substeps", ge=1),
+        mass=r.number(v.get("mass", d.mass), "sim.mass", ge=0.001, le=1000),
+        kp=r.number(v.get("kp", d.kp), "sim.kp", gt=0, le=1e5),
+        kd=r.number(v.get("kd", d.kd), "sim.kd", ge=0, le=1e4),
+        dt=r.number(v.get("dt", d.dt), "sim.dt", ge=1e-4, le=0.1),
+        substeps=r.integer(v.get("substeps", d.substeps), "sim.substeps", ge=1, le=100),
         force_limit=r.number(v.get("force_limit", d.force_limit), "sim.force_limit", gt=0, le=1e6),
-        settle_time=r.number(v.get("settle_time", d.settle_time), "sim.settle_time", ge=0),
-        tolerance=r.number(v.get("tolerance", d.tolerance), "sim.tolerance", gt=0),
+        settle_time=r.number(v.get("settle_time", d.settle_time), "sim.settle_time", ge=0, le=600),
+        tolerance=r.number(v.get("tolerance", d.tolerance), "sim.tolerance", ge=1e-4, le=100),
         control_rate=None if rate is None else r.number(rate, "sim.control_rate", ge=1, le=10000),
         latency=r.number(v.get("latency", d.latency), "sim.latency", ge=0, le=1),
         noise=_read_noise(r, v.get("noise")),
@@ -728,15 +769,13 @@ def _read_render(r: _Reader, value) -> RenderParams:
     formats = v.get("formats", list(d.formats))
     if isinstance(formats, str):
         formats = [formats]
-    if not isinstance(formats, list) or not formats:
+    if not isinstance(formats, list) or not 1 <= len(formats) <= 2:
         r.fail("render.formats", f"must be a list of gif and/or mp4, got {_kind(formats)}")
     for i, fm in enumerate(formats):
         if fm not in ("gif", "mp4"):
-            r.fail(f"render.formats[{i}]", f"unknown format {fm!r} (known: gif, mp4)")
+            r.fail(f"render.formats[{i}]", f"unknown format (known: gif, mp4), got {_kind(fm)}")
     speed = v.get("speedup", "auto")
-    fps = r.integer(v.get("fps", d.fps), "render.fps", ge=1)
-    if fps > MAX_FPS:
-        r.fail("render.fps", f"must be an integer in [1, {MAX_FPS}], got {fps}")
+    fps = r.integer(v.get("fps", d.fps), "render.fps", ge=1, le=MAX_FPS)
     if fps > 50 and "gif" in formats:
         r.fail("render.fps", f"must be <= 50 for a GIF (frame delays are whole hundredths of a second), got {fps}")
     return RenderParams(
@@ -744,16 +783,13 @@ def _read_render(r: _Reader, value) -> RenderParams:
         size=_render_size(r, v.get("size", "auto")),
         trails=r.boolean(v.get("trails", d.trails), "render.trails"),
         formats=tuple(dict.fromkeys(formats)),
-        speedup=None if speed == "auto" else r.number(speed, "render.speedup", gt=0),
-        video_seconds=r.number(v.get("video_seconds", d.video_seconds), "render.video_seconds", gt=0),
+        speedup=None if speed == "auto" else r.number(speed, "render.speedup", ge=0.01, le=10_000),
+        video_seconds=r.number(v.get("video_seconds", d.video_seconds), "render.video_seconds", ge=1, le=600),
     )
 
 
 def _render_size(r: _Reader, value) -> int | None:
-    size = r.int_or_auto(value, "render.size", ge=64)
-    if size is not None and size > MAX_RENDER_SIZE:
-        r.fail("render.size", f"must be an integer in [64, {MAX_RENDER_SIZE}] or 'auto', got {size}")
-    return size
+    return r.int_or_auto(value, "render.size", ge=64, le=MAX_RENDER_SIZE)
 
 
 # ----------------------------------------------------------------------------

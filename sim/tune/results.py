@@ -178,8 +178,7 @@ def _check_kind(path: Path, st: os.stat_result | None = None) -> None:
             raise TuneError(f"--output: {path}: cannot be checked: {exc.strerror or exc}") from None
     mode = st.st_mode
     if stat.S_ISLNK(mode):
-        raise TuneError(f"--output: {path}: is a symbolic link; a sweep appends only to its own results "
-                        "files, never through a link (give the real path)")
+        raise TuneError(f"--output: {path}: is a symbolic link; a sweep never writes through one (give the real path)")
     if not stat.S_ISREG(mode):
         kind = ("a directory" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else
                 "a socket" if stat.S_ISSOCK(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
@@ -189,8 +188,7 @@ def _check_kind(path: Path, st: os.stat_result | None = None) -> None:
 
 def _open_error(path: Path, exc: OSError) -> TuneError:
     if exc.errno == errno.ELOOP:
-        return TuneError(f"--output: {path}: is a symbolic link; a sweep appends only to its own results "
-                         "files, never through a link (give the real path)")
+        return TuneError(f"--output: {path}: is a symbolic link; a sweep never writes through one (give the real path)")
     if exc.errno == errno.EISDIR:
         return TuneError(f"--output: {path}: is a directory, not a results file")
     return TuneError(f"--output: {path}: cannot open the results file: {exc.strerror or exc}")
@@ -212,12 +210,12 @@ def _scan(path: Path, data: bytes) -> tuple[list[dict], int]:
     for n, line in enumerate(data[:end].split(b"\n")[:-1], 1):
         row = _row(line)
         if row is None:
-            raise TuneError(f"--output: {path}: is not a results file of swarmform tune (line {n} is not a "
-                            "result row); give a new file or one a sweep wrote")
+            raise TuneError(f"--output: {path}: is not a results file (line {n} is not a result row); "
+                            "give a new file or one a sweep wrote")
         rows.append(row)
     if tail and not tail.startswith(ROW_PREFIX[: len(tail)]):
-        raise TuneError(f"--output: {path}: is not a results file of swarmform tune (its last line is not "
-                        "a result row); give a new file or one a sweep wrote")
+        raise TuneError(f"--output: {path}: is not a results file (its last line is not a result row); "
+                        "give a new file or one a sweep wrote")
     return rows, end
 
 

@@ -130,3 +130,26 @@ def test_minimum_jerk_limits_respected():
     # velocity is the derivative of position
     dt = ts[1] - ts[0]
     assert np.allclose(np.gradient(pos[:, 0, 0], dt), vel[:, 0, 0], atol=1e-3)
+
+
+@pytest.mark.parametrize("case", ["robot-robot", "robot-obstacle", "robot-wall"])
+def test_gap_between_zero_and_the_margin_is_invalid(case):
+    """Nothing touches, but the gap 0.05 is below the margin 0.1: the plan must be refused."""
+    if case == "robot-robot":  # they pass each other on lanes 2.05 apart
+        start = np.array([[5.0, 30.0], [15.0, 32.05]])
+        end = np.array([[15.0, 30.0], [5.0, 32.05]])
+    elif case == "robot-obstacle":  # along the circle (30, 8) r 3, 4.05 from its centre
+        start, end = np.array([[25.0, 3.95]]), np.array([[35.0, 3.95]])
+    else:  # along the left wall, 1.05 from it
+        start, end = np.array([[1.05, 30.0]]), np.array([[1.05, 36.0]])
+    problem = _problem(start, end)
+    plan = Plan.from_waypoints([start, end], 1.0, 0.1, 2.0, 2.0)
+    c = min_clearance(problem, plan)
+    assert c.kind == case
+    assert c.value == pytest.approx(0.05, abs=1e-9)
+    assert 0 < c.value < problem.margin
+    with pytest.raises(PlanInvalid, match="margin 0.1") as info:
+        check_plan(problem, plan)
+    assert info.value.clearance.value == pytest.approx(0.05, abs=1e-9)
+    # a brute-force sample agrees that nothing touches
+    assert 0 < _brute_force(problem, plan, 2000) < problem.margin

@@ -1,24 +1,29 @@
-"""The command line and bad input: exit codes, one-line messages, pictures.
+"""The command line and wrong input: exit codes, one-line messages, bounded resources.
 
-``tests/data/bad/`` holds malformed scenario files.  Each starts with
-comment lines that say what the error must name::
+``tests/data/bad/`` holds the bad-input corpus: scenario files (``.yaml``)
+and plan files (``.json``, made for ``tests/data/plan-base.yaml``), one or
+more per class of wrong input (syntax, YAML features, file kinds and sizes,
+every field's range, numbers of every odd kind, echoes of huge values,
+polygons, plan files, the physics budget).  :data:`CORPUS` names, for each
+file, the field its message must name and a piece of the reason.
 
-    # field: robots.radius        (required: the field the message names)
-    # says: must be > 0           (optional: a piece of the reason)
-    # xfail: ...                  (optional: a known defect, with where it is)
-
-For each file ``swarmform show FILE -o OUT.png`` must exit 2 with exactly
-one line on stderr naming the file and the field, no traceback, and no
-picture written; in-process, reading and building must raise
-:class:`ScenarioError` with that field.
+Every file goes through ``swarmform run`` as a user would start it (a plan
+file as ``run tests/data/plan-base.yaml --plan FILE``), with the address
+space limited to 2 GiB (``RLIMIT_AS``, what ``prlimit --as`` sets), and must
+exit 2 with exactly one line of at most 200 characters on stderr naming the
+file and the field, no traceback, within seconds, and leave its output
+folder empty.  In-process, scenario files must raise :class:`ScenarioError`
+with that field.
 
 Starting the interpreter and importing numpy, scipy and pygame costs more
 than a second, so the corpus runs in one helper process that imports the
-command once and forks a child per file: each child runs ``sim.cli.main``
-exactly as the ``swarmform`` console script does (``sys.exit(main())``,
-uncaught exceptions print a traceback and exit 1) with its own stdout,
-stderr and exit status.  One corpus file, ``swarmform formations`` and
-``swarmform show`` of a paper figure also run the installed script itself.
+command once and forks a child per case (four at a time): each child sets
+its address-space limit and runs ``sim.cli.main`` exactly as the
+``swarmform`` console script does (``sys.exit(main())``; an uncaught
+exception prints a traceback and exits 1) with its own stdout and stderr;
+the helper reports each child's exit status, wall time and peak resident
+memory.  A few corpus files, ``swarmform formations`` and ``swarmform show``
+of a paper figure also run the installed script itself, under ``prlimit``.
 All of these processes are started together by one module fixture.
 """
 
@@ -26,9 +31,11 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -41,8 +48,9 @@ from sim.cli import main
 from sim.scenario import ScenarioError, build_problem, read_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
-BAD = ROOT / "tests" / "data" / "bad"
-BAD_FILES = sorted(BAD.glob("*.yaml"))
+DATA = ROOT / "tests" / "data"
+BAD = DATA / "bad"
+PLAN_BASE = DATA / "plan-base.yaml"
 FIG1 = ROOT / "scenarios" / "paper" / "fig1-line-to-phi.yaml"
 FIG2 = ROOT / "scenarios" / "paper" / "fig2-random-to-C.yaml"  # random start
 FIXED = ROOT / "scenarios" / "letters" / "line-to-A.yaml"  # rotations and centres given
@@ -50,25 +58,164 @@ FIXED = ROOT / "scenarios" / "letters" / "line-to-A.yaml"  # rotations and centr
 _SCRIPT = Path(sys.executable).with_name("swarmform")
 SWARMFORM = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "sim.cli"]
 
+ADDRESS_SPACE = 2 << 30  # bytes: every corpus run is limited to 2 GiB of address space
+SECONDS = 20.0  # the longest a corpus run may take (they take well under a second here)
+LINE_MAX = 200
 
-def _header(path: Path) -> dict[str, str]:
-    out = {}
-    for line in path.read_text(encoding="utf-8").splitlines():
-        if not line.startswith("# ") or ":" not in line:
-            break
-        key, value = line[2:].split(":", 1)
-        out[key.strip()] = value.strip()
-    return out
+# file -> (the field its one-line message names, a piece of the reason)
+CORPUS = {
+    "scatter-too-many.yaml": ("start", "80 robots do not fit the workspace at spacing 2.1; at most"),
+    "font-missing.yaml": ("target.formation.font", "no such file"),
+    "target-and-targets.yaml": ("targets", "give either target (one) or targets (a chain), not both"),
+    "region-outside-workspace.yaml": ("start.region", "must satisfy 0 <= x0 < x1 <= 40"),
+    "text-too-long.yaml": ("target.formation.text", "must be at most 40 characters, got 42"),
+    "strokes-outside-unit-box.yaml": ("target.formation.strokes[0][1]", "lies outside the unit box"),
+    "budget-slow-robots.yaml": ("physics budget", "steps > 5e+07; raise robots.max_speed/max_accel"),
+    "center-on-obstacle.yaml": ("target.center", "obstacle 0"),
+    "center-outside-workspace.yaml": ("target.center", "outside the 40 x 40 workspace"),
+    "circle-radius-huge.yaml": ("obstacles[0].circle.radius", "in (0, 40], got 1e+30"),
+    "count-5000-digits.yaml": ("robots.count", "got an integer of 5000 digits"),
+    "count-million.yaml": ("robots.count", "in [1, 1000], got 1000000"),
+    "count-mismatch-points.yaml": ("robots.count", "is 5 but start.points has 3 points"),
+    "count-one-formation.yaml": ("robots.count", "at least 2"),
+    "duplicate-key.yaml": ("line 3, column 3", "duplicate key 'radius'"),
+    "empty.yaml": ("file", "is empty"),
+    "file-binary-garbage.yaml": ("file", "is not UTF-8 text"),
+    "file-dangling-link.yaml": ("file", "no such file"),
+    "file-dev-zero.yaml": ("file", "is a character device, not a regular file"),
+    "file-too-big.yaml": ("file", "larger than the 256 KiB"),
+    "file-utf16.yaml": ("file", "is not UTF-8 text"),
+    "formation-long-string.yaml": ("start.formation", "(10000 characters)"),
+    "formation-too-big.yaml": ("start", "does not fit"),
+    "formation-unhashable.yaml": ("start.formation", "unknown formation"),
+    "letter-count-mismatch.yaml": ("robots.count", "count mismatch"),
+    "mapping-key-unhashable.yaml": ("line 1, column 3", "mapping key must be a plain value"),
+    "margin-huge.yaml": ("robots.margin", "in [0, 100], got 1e+300"),
+    "max-accel-huge.yaml": ("robots.max_accel", "in [0.001, 10000], got 1e+300"),
+    "max-speed-inf.yaml": ("robots.max_speed", "finite number in [0.001, 1000], got inf"),
+    "max-speed-tiny.yaml": ("robots.max_speed", "got 1e-300"),
+    "missing-target.yaml": ("target", "is required"),
+    "name-100k-characters.yaml": ("name", "(100000 characters)"),
+    "name-250-characters.yaml": ("name", "(250 characters)"),
+    "name-empty.yaml": ("name", "got string ''"),
+    "name-path-traversal.yaml": ("name", "'../../etc/passwd'"),
+    "obstacles-random-10000.yaml": ("obstacles[0].random.count", "in [1, 24], got 10000"),
+    "obstacles-vertices-random.yaml": ("obstacles[1]", "brings the obstacle vertices to 200"),
+    "obstacles-too-many.yaml": ("obstacles", "at most 32 obstacles, got 250"),
+    "paper-time-negative.yaml": ("paper.time_s", "got -3"),
+    "plan-binary-garbage.json": ("file", "is not UTF-8 text"),
+    "plan-deep-nesting.json": ("file", "too deeply"),
+    "plan-duration-negative.json": ("durations[0]", "in [0.001, 100000]"),
+    "plan-duration-string.json": ("durations[0]", "got string"),
+    "plan-duration-tiny.json": ("durations[0]", "got number 1e-300"),
+    "plan-duration-zero.json": ("durations[0]", "got number 0"),
+    "plan-empty.json": ("line 1", "invalid JSON"),
+    "plan-huge-integer.json": ("durations[0]", "an integer of 5000 digits"),
+    "plan-infinity.json": ("durations[0]", "got number inf"),
+    "plan-margin-mismatch.json": ("margin", "has robots.margin 0.1"),
+    "plan-max-speed-string.json": ("max_speed", "got string 'fast'"),
+    "plan-missing-durations.json": ("durations", "is missing"),
+    "plan-nan.json": ("waypoints[1][0][0]", "got number nan"),
+    "plan-not-an-object.json": ("file", "must hold a JSON object"),
+    "plan-physics-budget.json": ("physics budget", "2 robots x 1.1e+06 s: 5.28e+08 steps > 5e+07"),
+    "plan-profile-unknown.json": ("profile", "'cubic'"),
+    "plan-radius-mismatch.json": ("radius", "is 5 but tests/data/plan-base.yaml has robots.radius 1"),
+    "plan-radius-string.json": ("radius", "got string '1'"),
+    "plan-seed-string.json": ("seed", "got string '0'"),
+    "plan-stats-bad.json": ("stats.found", "must be a boolean"),
+    "plan-too-fast.json": ("durations[0]", "step 0 moves robot 0 at a peak speed of 4, over robots.max_speed = 2"),
+    "plan-too-many-steps.json": ("durations", "at most 100000 steps"),
+    "plan-too-much-acceleration.json": ("durations[0]", "peak acceleration of 4.009, over robots.max_accel = 2"),
+    "plan-truncated.json": ("line 1", "invalid JSON"),
+    "plan-waypoints-boolean.json": ("waypoints[1][0][1]", "got boolean True"),
+    "plan-waypoints-far.json": ("waypoints[1][0][0]", "got number 1e+300"),
+    "plan-waypoints-outside.json": ("waypoints[1][0]", "(45, 5) lies outside the 40 x 40 workspace"),
+    "plan-waypoints-ragged.json": ("waypoints[1]", "moves 1 robot, waypoints[0] 2"),
+    "plan-waypoints-strings.json": ("waypoints[0][0][0]", "got string '5'"),
+    "plan-waypoints-triples.json": ("waypoints[0][0]", "got a list of 3"),
+    "plan-wrong-robot-count.json": ("waypoints", "moves 1 robot but"),
+    "plan-wrong-start.json": ("waypoints[0][0]", "does not start where"),
+    "planner-extra-billion.yaml": ("planner.extra", "in [0, 1000], got 1000000000"),
+    "planner-g-boolean.yaml": ("planner.g", "got boolean True"),
+    "planner-g-zero.yaml": ("planner.g", "in [1, 100], got 0"),
+    "planner-n-billion.yaml": ("planner.n", "in [2, 2000], got 1000000000"),
+    "planner-q-huge.yaml": ("planner.q", "in [1, 100000], got 10000000000"),
+    "planner-time-limit-inf.yaml": ("planner.time_limit", "got inf"),
+    "point-inside-obstacle.yaml": ("target.points[2]", "obstacle 1"),
+    "point-outside-workspace.yaml": ("start.points[1]", "the wall"),
+    "points-length-mismatch.yaml": ("target.points", "has 4 robots but start.points has 3"),
+    "points-overlap.yaml": ("start.points[1]", "overlaps robot 2"),
+    "points-too-many.yaml": ("start.points", "got a list of 2000"),
+    "polygon-10000-vertices.yaml": ("obstacles[0].polygon", "3 to 192 points [x, y], got a list of 10000"),
+    "polygon-bowtie.yaml": ("obstacles[0].polygon", "is self-intersecting"),
+    "polygon-collinear.yaml": ("obstacles[0].polygon", "is self-intersecting"),
+    "polygon-repeated-vertex.yaml": ("obstacles[0].polygon", "repeats a vertex"),
+    "polygon-self-intersecting.yaml": ("obstacles[1].polygon", "is self-intersecting"),
+    "polygon-string-vertex.yaml": ("obstacles[0].polygon[1][0]", "got string '20'"),
+    "polygon-vertex-outside.yaml": ("obstacles[0].polygon[2]", "outside"),
+    "polygon-vertices-total.yaml": ("obstacles[2]", "brings the obstacle vertices to 240"),
+    "python-tag.yaml": ("line 2, column 9", "'!!python/object/apply:os.system' is not allowed"),
+    "radius-boolean.yaml": ("robots.radius", "got boolean True"),
+    "radius-huge-integer.yaml": ("robots.radius", "an integer of 401 digits"),
+    "radius-huge.yaml": ("robots.radius", "got 1e+300"),
+    "radius-inf.yaml": ("robots.radius", "got inf"),
+    "radius-nan.yaml": ("robots.radius", "got nan"),
+    "radius-negative.yaml": ("robots.radius", "in [0.01, 100], got -1"),
+    "radius-tiny.yaml": ("robots.radius", "got 1e-300"),
+    "radius-wrong-type.yaml": ("robots.radius", "got string 'big'"),
+    "render-format-unknown.yaml": ("render.formats[1]", "got string 'avi'"),
+    "render-formats-three.yaml": ("render.formats", "got a list of 3"),
+    "render-fps-billion-mp4.yaml": ("render.fps", "in [1, 120], got 1000000000"),
+    "render-size-20000.yaml": ("render.size", "in [64, 4096], got 20000"),
+    "render-size-million.yaml": ("render.size", "got 1000000"),
+    "render-speedup-tiny.yaml": ("render.speedup", "got 1e-09"),
+    "render-video-seconds-huge.yaml": ("render.video_seconds", "got 1e+09"),
+    "rotation-inf.yaml": ("start.rotation", "got inf"),
+    "scale-nan.yaml": ("start.scale", "got nan"),
+    "scale-too-big.yaml": ("start.scale", "in (0, 1], got 1.5"),
+    "seed-date.yaml": ("seed", "got a date"),
+    "seed-float.yaml": ("seed", "got number 1.5"),
+    "seed-huge.yaml": ("seed", "an integer of about 41 digits"),
+    "seed-negative.yaml": ("seed", "in [0, 2^63 - 1], got -4"),
+    "sim-dt-coarse-for-speed.yaml": ("sim.dt", "robots.radius / (2 max_speed) = 0.005 s"),
+    "sim-dt-tiny.yaml": ("sim.dt", "in [0.0001, 0.1], got 1e-09"),
+    "sim-kp-inf.yaml": ("sim.kp", "got inf"),
+    "sim-settle-time-huge.yaml": ("sim.settle_time", "in [0, 600], got 1e+12"),
+    "sim-substeps-billion.yaml": ("sim.substeps", "in [1, 100], got 1000000000"),
+    "top-level-list.yaml": ("file", "must hold a mapping"),
+    "unknown-formation.yaml": ("target.formation", "got string 'B'"),
+    "unknown-key-long.yaml": ("kkkkkkkkkkkkkkkkkkkkk...", "unknown key"),
+    "unknown-robots-key.yaml": ("robots.colour", "unknown key"),
+    "unknown-top-level-key.yaml": ("colour", "unknown key"),
+    "workspace-huge.yaml": ("workspace[0]", "in [1, 1000], got 1e+09"),
+    "workspace-inf.yaml": ("workspace[0]", "got inf"),
+    "workspace-not-a-pair.yaml": ("workspace", "must be a pair"),
+    "workspace-zero.yaml": ("workspace[0]", "got 0"),
+    "yaml-alias-bomb.yaml": ("line 2, column 4", "anchors (&name) are not allowed"),
+    "yaml-alias-reuse.yaml": ("line 2, column 8", "anchors (&name) are not allowed"),
+    "yaml-multi-document.yaml": ("line 4, column 1", "another document"),
+    "yaml-nesting-block.yaml": ("line 36, column 65", "nesting deeper than 32 levels"),
+    "yaml-nesting-flow.yaml": ("line 4, column 1008", "nesting depth"),
+    "yaml-nul-character.yaml": ("line 4, column 8", "U+0000"),
+    "yaml-syntax-error.yaml": ("line 2, column 7", "invalid YAML"),
+    "yaml-tab-indent.yaml": ("line 3, column 1", "invalid YAML"),
+    "yaml-tag-binary.yaml": ("line 2, column 7", "'!!binary' is not allowed"),
+    "yaml-tag-custom.yaml": ("line 4, column 9", "'!robot' is not allowed"),
+    "yaml-tag-timestamp-explicit.yaml": ("line 2, column 7", "'!!timestamp' is not allowed"),
+}
+
+# Files the physics budget refuses: they are valid until the plan is known,
+# so their run prints its first line on stdout before the refusal.
+AFTER_PLANNING = {"budget-slow-robots.yaml", "plan-physics-budget.json"}
+
+BAD_FILES = sorted(BAD.iterdir())
 
 
-def _params():
-    for path in BAD_FILES:
-        head = _header(path)
-        marks = [pytest.mark.xfail(strict=True, reason=head["xfail"])] if "xfail" in head else []
-        yield pytest.param(path, marks=marks, id=path.stem)
-
-
-BAD_CASES = list(_params())
+def _argv(path: Path, out_dir: Path) -> list[str]:
+    rel = str(path.relative_to(ROOT))
+    if path.suffix == ".json":
+        return ["run", str(PLAN_BASE.relative_to(ROOT)), "--plan", rel, "--out", str(out_dir), "--no-render"]
+    return ["run", rel, "--out", str(out_dir), "--no-render"]
 
 
 # ----------------------------------------------------------------------------
@@ -76,41 +223,49 @@ BAD_CASES = list(_params())
 
 
 class _Run:
-    def __init__(self, returncode, stdout, stderr, out_dir, timed_out=False):
+    def __init__(self, returncode, stdout, stderr, out_dir, timed_out=False, seconds=0.0, rss_mib=0.0):
         self.returncode = returncode
         self.stdout = stdout
         self.stderr = stderr
         self.out_dir = out_dir
         self.timed_out = timed_out
+        self.seconds = seconds
+        self.rss_mib = rss_mib
+        self.before: list[str] = []
 
 
 def _env() -> dict:
     return dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy")
 
 
-def _run(args, out_dir: Path, timeout: float = 120.0) -> _Run:
-    """Run the installed ``swarmform`` script."""
+def _run(args, out_dir: Path, timeout: float = 120.0, prefix=()) -> _Run:
+    """Run the installed ``swarmform`` script (after ``prefix``, e.g. prlimit)."""
     try:
         p = subprocess.run(
-            SWARMFORM + list(args), cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=timeout
+            list(prefix) + SWARMFORM + list(args), cwd=ROOT, env=_env(), capture_output=True, text=True,
+            timeout=timeout,
         )
     except subprocess.TimeoutExpired as exc:
         return _Run(None, exc.stdout or "", exc.stderr or "", out_dir, timed_out=True)
     return _Run(p.returncode, p.stdout, p.stderr, out_dir)
 
 
-# Imports the command once, then forks one child per job.  A child does what
-# the console script does, ``sys.exit(main())``, including the interpreter's
-# handling of an uncaught exception (traceback on stderr, exit status 1).
+# Imports the command once, then forks one child per job, a few at a time.
+# A child limits its address space and does what the console script does,
+# ``sys.exit(main())``, including the interpreter's handling of an uncaught
+# exception (traceback on stderr, exit status 1).
 _FORK_DRIVER = r"""
-import json, os, signal, sys, time, traceback
-import sim.cli, sim.media, sim.render  # everything `swarmform show` imports
+import json, os, resource, signal, sys, time, traceback
+import sim.cli, sim.media, sim.render, sim.runner  # everything the commands import
+import scipy.optimize, scipy.spatial, shapely  # and import lazily
 
 def child(job):
     code = 1
     try:
         for fd, name in ((1, job["stdout"]), (2, job["stderr"])):
             os.dup2(os.open(name, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644), fd)
+        if job["address_space"]:
+            resource.setrlimit(resource.RLIMIT_AS, (job["address_space"], job["address_space"]))
         sys.argv = ["swarmform", *job["argv"]]
         try:
             code = sim.cli.main()
@@ -130,36 +285,41 @@ def child(job):
         os._exit(code)
 
 jobs = json.loads(sys.argv[1])
-pids = {}
-for key, job in jobs.items():
-    sys.stdout.flush()
-    sys.stderr.flush()
-    pid = os.fork()
-    if pid == 0:
-        child(job)
-    pids[key] = (pid, time.monotonic() + job["timeout"])
+todo = list(jobs.items())
+running = {}
 results = {}
-while pids:
-    for key, (pid, deadline) in list(pids.items()):
-        done, status = os.waitpid(pid, os.WNOHANG)
-        if done:
-            results[key] = {"returncode": os.waitstatus_to_exitcode(status), "timed_out": False}
-        elif time.monotonic() > deadline:
+while todo or running:
+    while todo and len(running) < 4:
+        key, job = todo.pop(0)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        t0 = time.monotonic()
+        pid = os.fork()
+        if pid == 0:
+            child(job)
+        running[key] = (pid, t0, t0 + job["timeout"])
+    for key, (pid, t0, deadline) in list(running.items()):
+        done, status, usage = os.wait4(pid, os.WNOHANG)
+        timed_out = False
+        if not done:
+            if time.monotonic() <= deadline:
+                continue
             os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-            results[key] = {"returncode": None, "timed_out": True}
-        else:
-            continue
-        del pids[key]
-    time.sleep(0.01)
+            _, status, usage = os.wait4(pid, 0)
+            timed_out = True
+        results[key] = {"returncode": None if timed_out else os.waitstatus_to_exitcode(status),
+                        "timed_out": timed_out, "seconds": time.monotonic() - t0,
+                        "rss_mib": usage.ru_maxrss / 1024}
+        del running[key]
+    time.sleep(0.005)
 print(json.dumps(results))
 """
 
 
 def _run_forked(jobs: dict, base: Path) -> dict:
-    """Run ``{key: (argv, out_dir, timeout)}`` through the fork driver."""
+    """Run ``{key: (argv, out_dir, timeout, address_space)}`` through the fork driver."""
     spec = {}
-    for key, (argv, out_dir, timeout) in jobs.items():
+    for key, (argv, out_dir, timeout, address_space) in jobs.items():
         logs = base / "logs" / key.replace(":", "-")
         logs.mkdir(parents=True)
         spec[key] = {
@@ -167,6 +327,7 @@ def _run_forked(jobs: dict, base: Path) -> dict:
             "stdout": str(logs / "stdout"),
             "stderr": str(logs / "stderr"),
             "timeout": timeout,
+            "address_space": address_space,
         }
     p = subprocess.run(
         [sys.executable, "-c", _FORK_DRIVER, json.dumps(spec)],
@@ -174,19 +335,21 @@ def _run_forked(jobs: dict, base: Path) -> dict:
         env=_env(),
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=600,
     )
     assert p.returncode == 0, p.stderr
     status = json.loads(p.stdout.splitlines()[-1])
     out = {}
-    for key, (argv, out_dir, timeout) in jobs.items():
+    for key, (argv, out_dir, timeout, _) in jobs.items():
         st = status[key]
         out[key] = _Run(
             st["returncode"],
-            Path(spec[key]["stdout"]).read_text(),
-            Path(spec[key]["stderr"]).read_text(),
+            Path(spec[key]["stdout"]).read_text(errors="replace"),
+            Path(spec[key]["stderr"]).read_text(errors="replace"),
             out_dir,
             timed_out=st["timed_out"],
+            seconds=st["seconds"],
+            rss_mib=st["rss_mib"],
         )
     return out
 
@@ -197,8 +360,57 @@ start: {formation: random}
 target: {formation: line}
 """
 
-# A corpus file that also runs through the installed script.
-SCRIPT_BAD = ("python-tag",)
+# Corpus files that also run through the installed script, under prlimit.
+SCRIPT_BAD = ("python-tag.yaml", "yaml-alias-bomb.yaml", "plan-huge-integer.json", "file-dev-zero.yaml")
+
+# Wrong command lines, unreadable inputs and unwritable output paths:
+# key -> (argv with {d} for the case's folder, a piece of the one-line
+# message).  Each case's folder is empty or holds what ``_prepare`` puts
+# there, and must not change.
+OPTION_CASES = {
+    "argv-nothing": ([], "required: COMMAND"),
+    "argv-unknown-command": (["fly"], "invalid choice"),
+    "argv-formations-extra": (["formations", "extra"], "unrecognized arguments"),
+    "argv-show-no-scenario": (["show"], "required: scenario"),
+    "argv-run-unknown-option": (["run", str(FIG1), "--colour", "x" * 5000], "unrecognized arguments"),
+    "argv-plan-time-limit-text": (["plan", str(FIG1), "--time-limit", "soon"], "--time-limit"),
+    "argv-plan-time-limit-huge": (["plan", str(FIG1), "--time-limit", "1e12"], "(0, 3600]"),
+    "argv-tune-g-zero": (["tune", str(FIG1), "--g", "0", "--q", "5"], "--g"),
+    "seed-negative": (["show", str(FIG1), "--seed", "-3", "-o", "{d}/x.png"], "--seed"),
+    "seed-text": (["show", str(FIG1), "--seed", "abc", "-o", "{d}/x.png"], "--seed"),
+    "seed-5000-digits": (["run", str(FIG1), "--seed", "7" * 5000, "--out", "{d}"], "--seed"),
+    "show-size-zero": (["show", str(FIG1), "--size", "0", "-o", "{d}/x.png"], "--size"),
+    "show-size-huge": (["show", str(FIG1), "--size", "100000", "-o", "{d}/x.png"], "--size"),
+    "missing": (["run", "{d}/no-such-scenario.yaml", "--out", "{d}"], "no such file"),
+    "scenario-folder": (["run", "{d}/folder.yaml", "--out", "{d}"], "is a folder"),
+    "scenario-fifo": (["run", "{d}/fifo.yaml", "--out", "{d}"], "is a FIFO"),
+    "plan-fifo": (["run", str(PLAN_BASE), "--plan", "{d}/fifo.json", "--out", "{d}"], "is a FIFO"),
+    "scenario-long-path": (["run", "{d}/" + "p" * 300 + "/" + "q" * 5000 + ".yaml", "--out", "{d}"], ": file: "),
+    "run-out-is-a-file": (["run", str(FIG1), "--out", "{d}/taken"], "is a file, not a folder"),
+    "run-out-under-a-file": (["run", str(FIG1), "--out", "{d}/taken/sub"], "taken"),
+    "run-report-is-a-folder": (["run", str(FIG1), "--out", "{d}"], "is a folder"),
+    "plan-o-folder": (["plan", str(FIG1), "-o", "{d}"], "is a folder"),
+    "plan-o-under-a-file": (["plan", str(FIG1), "-o", "{d}/taken/p.json"], "taken"),
+    "plan-o-long-name": (["plan", str(FIG1), "-o", "{d}/" + "n" * 300 + ".json"], "longer than"),
+    "show-o-folder": (["show", str(FIG1), "-o", "{d}"], "is a folder"),
+    "show-o-trailing-slash": (["show", str(FIG1), "-o", "{d}/new/"], "names a folder"),
+}
+
+
+def _prepare(key: str, d: Path) -> None:
+    """What a case's folder holds before the run (an obstacle to the output path)."""
+    if key in ("scenario-fifo", "plan-fifo"):
+        os.mkfifo(d / ("fifo.yaml" if key == "scenario-fifo" else "fifo.json"))
+    elif key == "scenario-folder":
+        (d / "folder.yaml").mkdir()
+    elif key.endswith(("is-a-file", "under-a-file")):
+        (d / "taken").write_text("a file in the way\n")
+    elif key == "run-report-is-a-folder":
+        (d / "fig1-line-to-phi.json").mkdir()
+
+
+def _listing(d: Path) -> list[str]:
+    return sorted(str(p.relative_to(d)) for p in d.rglob("*")) if d.exists() else []
 
 
 @pytest.fixture(scope="module")
@@ -213,36 +425,37 @@ def runs(tmp_path_factory):
 
     forked = {}
     for path in BAD_FILES:
-        key = f"bad:{path.stem}"
+        key = f"bad:{path.name}"
         d = out_dir(key)
-        forked[key] = (["show", str(path.relative_to(ROOT)), "-o", str(d / "out.png")], d, 60.0)
+        forked[key] = (_argv(path, d), d, SECONDS, ADDRESS_SPACE)
     d = out_dir("huge-count")
     (d / "huge.yaml").write_text(HUGE_COUNT)
-    forked["huge-count"] = (["show", str(d / "huge.yaml"), "-o", str(d / "x.png")], d, 3.0)
-    for key, args in {
-        "missing": ["show", "{d}/no-such-scenario.yaml", "-o", "{d}/x.png"],
-        "seed-negative": ["show", str(FIG1), "--seed", "-3", "-o", "{d}/x.png"],
-        "seed-text": ["show", str(FIG1), "--seed", "abc", "-o", "{d}/x.png"],
-    }.items():
+    forked["huge-count"] = (["show", str(d / "huge.yaml"), "-o", str(d / "x.png")], d, 3.0, ADDRESS_SPACE)
+    for key, (args, _) in OPTION_CASES.items():
         d = out_dir(key)
-        forked[key] = ([a.replace("{d}", str(d)) for a in args], d, 60.0)
+        _prepare(key, d)
+        forked[key] = ([a.replace("{d}", str(d)) for a in args], d, SECONDS, ADDRESS_SPACE)
+    before = {key: _listing(job[1]) for key, job in forked.items()}
 
     scripted = {}
-    for stem in SCRIPT_BAD:
-        d = out_dir(f"script:{stem}")
-        scripted[f"script:{stem}"] = (["show", f"tests/data/bad/{stem}.yaml", "-o", str(d / "out.png")], d)
+    limit = ("prlimit", f"--as={ADDRESS_SPACE}", "--") if shutil.which("prlimit") else ()
+    for name in SCRIPT_BAD:
+        d = out_dir(f"script:{name}")
+        scripted[f"script:{name}"] = (_argv(BAD / name, d), d, limit)
     for key, args in {
         "formations": ["formations"],
         "show": ["show", str(FIG1), "-o", "{d}/fig1.png"],
     }.items():
         d = out_dir(key)
-        scripted[key] = ([a.replace("{d}", str(d)) for a in args], d)
+        scripted[key] = ([a.replace("{d}", str(d)) for a in args], d, ())
 
     with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 2)) as pool:
         fork_future = pool.submit(_run_forked, forked, base)
-        futures = {k: pool.submit(_run, a, d) for k, (a, d) in scripted.items()}
+        futures = {k: pool.submit(_run, a, d, 120.0, pre) for k, (a, d, pre) in scripted.items()}
         results = {k: f.result() for k, f in futures.items()}
         results.update(fork_future.result())
+    for key, listing in before.items():
+        results[key].before = listing
     return results
 
 
@@ -250,75 +463,100 @@ def runs(tmp_path_factory):
 # the bad-input corpus
 
 
-def test_corpus_covers_the_required_cases():
-    stems = {p.stem for p in BAD_FILES}
+def test_corpus_table_names_every_file():
+    names = {p.name for p in BAD_FILES}
+    assert names == set(CORPUS), (sorted(names - set(CORPUS)), sorted(set(CORPUS) - names))
+    assert len(names) >= 60
     required = {
-        "unknown-top-level-key",
-        "unknown-robots-key",
-        "radius-wrong-type",
-        "radius-negative",
-        "points-overlap",
-        "point-inside-obstacle",
-        "point-outside-workspace",
-        "points-length-mismatch",
-        "count-mismatch-points",
-        "unknown-formation",
-        "formation-too-big",
-        "python-tag",
-        "duplicate-key",
-        "empty",
-        "polygon-self-intersecting",
-        "planner-g-zero",
-        "yaml-syntax-error",
-        "missing-target",
-        "letter-count-mismatch",
+        "unknown-top-level-key.yaml", "unknown-robots-key.yaml", "radius-wrong-type.yaml",
+        "radius-negative.yaml", "points-overlap.yaml", "point-inside-obstacle.yaml",
+        "point-outside-workspace.yaml", "points-length-mismatch.yaml", "count-mismatch-points.yaml",
+        "unknown-formation.yaml", "formation-too-big.yaml", "python-tag.yaml", "duplicate-key.yaml",
+        "empty.yaml", "polygon-self-intersecting.yaml", "planner-g-zero.yaml", "yaml-syntax-error.yaml",
+        "missing-target.yaml", "letter-count-mismatch.yaml",
+        # the classes of hostile input
+        "yaml-alias-bomb.yaml", "yaml-nesting-flow.yaml", "file-too-big.yaml", "file-dev-zero.yaml",
+        "file-binary-garbage.yaml", "radius-tiny.yaml", "radius-huge.yaml", "max-speed-inf.yaml",
+        "workspace-inf.yaml", "count-5000-digits.yaml", "radius-boolean.yaml", "radius-nan.yaml",
+        "sim-dt-tiny.yaml", "sim-substeps-billion.yaml", "sim-settle-time-huge.yaml",
+        "render-fps-billion-mp4.yaml", "render-speedup-tiny.yaml", "render-size-million.yaml",
+        "render-size-20000.yaml", "planner-n-billion.yaml", "planner-extra-billion.yaml",
+        "planner-q-huge.yaml", "name-250-characters.yaml", "name-100k-characters.yaml",
+        "obstacles-random-10000.yaml", "polygon-10000-vertices.yaml", "polygon-bowtie.yaml",
+        "plan-huge-integer.json", "plan-duration-tiny.json", "plan-waypoints-strings.json",
+        "plan-radius-mismatch.json", "plan-too-fast.json", "plan-too-much-acceleration.json",
+        "budget-slow-robots.yaml", "plan-physics-budget.json",
     }
-    assert required <= stems, sorted(required - stems)
-    for path in BAD_FILES:
-        assert path.read_text(encoding="utf-8").startswith("# field: "), path.name
-        assert _header(path)["field"], path.name
+    assert required <= names, sorted(required - names)
+    assert (BAD / "file-dev-zero.yaml").is_symlink()  # a character device, kept as a link in git
+
+
+def _check_one_line(r: _Run, *pieces: str) -> str:
+    assert not r.timed_out, "still running"
+    assert "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert r.returncode == 2, r.stderr[-2000:]
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1, r.stderr[-2000:]
+    line = lines[0]
+    assert len(line) <= LINE_MAX, line
+    for piece in pieces:
+        assert piece in line, (piece, line)
+    return line
 
 
 def _check_bad_run(path: Path, r: _Run):
-    head = _header(path)
-    assert not r.timed_out
-    assert "Traceback" not in r.stderr
-    assert r.returncode == 2, r.stderr
-    lines = r.stderr.splitlines()
-    assert len(lines) == 1, r.stderr
-    line = lines[0]
+    field, says = CORPUS[path.name]
     # "swarmform: error: FILE: FIELD: reason"
-    assert f"{path.relative_to(ROOT)}: {head['field']}" in line, line
-    if "says" in head:
-        assert head["says"] in line
-    # nothing ran, nothing was drawn, nothing half-written was left behind
-    assert r.stdout == ""
-    assert list(r.out_dir.iterdir()) == []
+    line = _check_one_line(r, f"{path.relative_to(ROOT)}: {field}: ", says)
+    assert line.startswith("swarmform: error: ")
+    if path.name not in AFTER_PLANNING:
+        assert r.stdout == ""  # refused before any work
+    assert _listing(r.out_dir) == []  # nothing written, nothing half-written left behind
 
 
-@pytest.mark.parametrize("path", BAD_CASES)
+@pytest.mark.parametrize("path", BAD_FILES, ids=lambda p: p.name)
 def test_bad_file_exits_2_with_one_line(path, runs):
-    _check_bad_run(path, runs[f"bad:{path.stem}"])
+    r = runs[f"bad:{path.name}"]
+    _check_bad_run(path, r)
+    assert r.seconds < SECONDS
 
 
-@pytest.mark.parametrize("stem", SCRIPT_BAD)
-def test_bad_file_through_the_installed_script(stem, runs):
-    _check_bad_run(BAD / f"{stem}.yaml", runs[f"script:{stem}"])
+def test_corpus_runs_are_quick_and_small(runs):
+    """Under the 2 GiB address-space limit every run is fast and stays far below it."""
+    rs = [runs[f"bad:{p.name}"] for p in BAD_FILES]
+    assert all(r.returncode == 2 for r in rs)
+    assert max(r.seconds for r in rs) < SECONDS
+    assert max(r.rss_mib for r in rs) < 1024
 
 
-@pytest.mark.parametrize("path", BAD_CASES)
+@pytest.mark.parametrize("name", SCRIPT_BAD)
+def test_bad_file_through_the_installed_script(name, runs):
+    _check_bad_run(BAD / name, runs[f"script:{name}"])
+
+
+@pytest.mark.parametrize("path", [p for p in BAD_FILES if p.suffix == ".yaml" and p.name not in AFTER_PLANNING],
+                         ids=lambda p: p.name)
 def test_bad_file_raises_scenario_error(path):
-    head = _header(path)
+    field, says = CORPUS[path.name]
     with pytest.raises(ScenarioError) as info:
         scenario = read_scenario(path)
         build_problem(scenario, np.random.default_rng(scenario.seed))
     exc = info.value
-    assert exc.field.startswith(head["field"]), (exc.field, head["field"])
+    assert exc.field.startswith(field), (exc.field, field)
     assert exc.path == str(path)
     assert "\n" not in str(exc)
     assert str(exc).startswith(f"{path}: {exc.field}: ")
-    if "says" in head:
-        assert head["says"] in str(exc)
+    assert says in str(exc)
+
+
+@pytest.mark.parametrize("key", list(OPTION_CASES))
+def test_wrong_options_and_paths_exit_2_with_one_line(key, runs):
+    """Argument errors of every subcommand, unreadable inputs, unwritable outputs: before any work."""
+    r = runs[key]
+    _check_one_line(r, OPTION_CASES[key][1])
+    assert r.stdout == ""
+    assert r.seconds < SECONDS
+    assert _listing(r.out_dir) == r.before  # the folder is as it was
 
 
 def test_python_tags_are_never_executed(tmp_path):
@@ -432,3 +670,13 @@ def test_show_default_output_path(tmp_path, monkeypatch):
     out = tmp_path / "media" / "fig1-line-to-phi-scenario.png"
     assert iio.imread(out).shape[2] in (3, 4)
     assert [p.name for p in (tmp_path / "media").iterdir()] == [out.name]
+
+
+@pytest.mark.parametrize("name", ["yaml-alias-bomb.yaml", "yaml-nesting-flow.yaml", "file-too-big.yaml",
+                                  "count-5000-digits.yaml", "file-dev-zero.yaml"])
+def test_expanding_inputs_are_refused_in_milliseconds(name):
+    """Refused before anything is expanded or read in full: well under 50 ms in-process."""
+    t0 = time.perf_counter()
+    with pytest.raises(ScenarioError):
+        read_scenario(BAD / name)
+    assert time.perf_counter() - t0 < 0.05

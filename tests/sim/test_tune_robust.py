@@ -100,12 +100,12 @@ def test_read_scenario_applies_overrides_and_blames_the_option():
     assert read_scenario(FIG2).margin == 0.1
     with pytest.raises(ScenarioError) as info:
         read_scenario(FIG2, overrides={"sim.nosie.position": 0.1})
-    assert str(info.value).startswith("--set sim.nosie.position: unknown key 'nosie' in sim (allowed here: mass, kp")
-    with pytest.raises(ScenarioError, match=r"^--set robots.margin: must be >= 0, got -1$"):
+    assert str(info.value).startswith("--set sim.nosie.position: unknown key 'nosie' in sim; allowed here: mass, kp")
+    with pytest.raises(ScenarioError, match=r"^--set robots.margin: must be a number in \[0, 100\], got -1$"):
         read_scenario(FIG2, overrides={"robots.margin": -1})
     with pytest.raises(ScenarioError, match=r"^--set robots: must be a mapping"):
         read_scenario(FIG2, overrides={"robots": 1})
-    with pytest.raises(ScenarioError, match=r"^--set colour: unknown key 'colour' \(allowed here"):
+    with pytest.raises(ScenarioError, match=r"^--set colour: unknown key 'colour'; allowed here"):
         read_scenario(FIG2, overrides={"colour": "red"})
 
 
@@ -127,7 +127,7 @@ def test_run_takes_set_options(tmp_path, capsys):
 def test_tune_refuses_a_bad_set_before_running(tmp_path, capsys):
     out = tmp_path / "r.jsonl"
     code, _, err = _cli(["tune", FIG2, "--set", "robots.margin=0.1,-1", "-o", out], capsys)
-    assert code == 2 and err.strip() == "swarmform: error: --set robots.margin: must be >= 0, got -1"
+    assert code == 2 and err.strip() == "swarmform: error: --set robots.margin: must be a number in [0, 100], got -1"
     assert not out.exists()
 
 
