@@ -324,6 +324,16 @@ def _allocate(strokes: tuple[Stroke, ...], m: int, gap: float = 0.0) -> tuple[li
     # not at all, so the letter stays symmetric; a leftover that no group
     # can take whole goes to the first strokes of the best group.
     remainder = np.round(c - k, 9)
+    # A stroke that would round to a robot but has none yet comes first
+    # (an A's crossbar before a second robot on each leg): every stroke of
+    # the drawing that can show, shows, once there are two robots per stroke
+    # (fewer only sketch the letter: an M of 4 keeps its feet).
+    empty = (k == 0) & (c >= 0.5) & (k < cap) & (m >= 2 * len(strokes))
+    for n in sorted(np.flatnonzero(empty), key=lambda n: -remainder[n]):
+        if rest > 0:
+            k[n] += 1
+            rest -= 1
+            remainder[n] = -1.0
     room = k < cap
     groups = [np.flatnonzero((remainder == r) & room) for r in sorted(set(remainder[room].tolist()), reverse=True)]
     for g in groups:

@@ -461,7 +461,6 @@ _STROKES = {
 _STROKES_FROM = {"line": 2, "A": 3, "M": 3, "N": 5, "C": 3, "lambda": 3, "phi": 9}
 # Counts at which a stroke is missing today (known defects of the letter layout).
 _MISSING_STROKE = {
-    ("A", 9): "A of 9 robots: all 9 on the legs, none on the crossbar",
     ("M", 8): "M of 8 robots: the right diagonal has no robot of its own (the left one has)",
 }
 _ON = 1e-6
