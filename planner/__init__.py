@@ -1,5 +1,6 @@
 """swarmform's planner: geometry, formations, the UPUMP planner, plans and their validation."""
 
+from .feasibility import Infeasible, feasibility
 from .formations import DEFAULT_COUNTS, FORMATIONS, formation_shape, place_formation
 from .params import PlannerParams
 from .plan import Plan, PlanFileError, PlanStats
@@ -13,6 +14,7 @@ __all__ = [
     "Clearance",
     "DEFAULT_COUNTS",
     "FORMATIONS",
+    "Infeasible",
     "NoPlanFound",
     "Plan",
     "PlanFileError",
@@ -23,6 +25,7 @@ __all__ = [
     "Problem",
     "ProblemError",
     "check_plan",
+    "feasibility",
     "formation_shape",
     "min_clearance",
     "place_formation",

@@ -10,6 +10,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .bounds import lower_bounds
 from .connect import sequenced_moves
+from .feasibility import feasibility
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
@@ -34,6 +35,11 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     problem.validate()
     t0 = time.perf_counter()
     deadline = t0 + params.time_limit
+    proof = feasibility(problem)
+    if proof is not None:
+        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
+        stats.extra.update(feasible=False, infeasible_reason=proof.reason)
+        raise NoPlanFound(proof.reason, stats)
     memo: dict = {}
     same = _same_set(problem.start, problem.target)
     direct = None if same else _direct(problem, params, memo)
@@ -287,6 +293,7 @@ def _drop_idle(waypoints: list[np.ndarray]) -> np.ndarray:
 
 def _fill_stats(stats: PlanStats, plan: Plan, clearance: float):
     stats.found = True
+    stats.extra["feasible"] = True
     stats.steps = plan.steps
     stats.makespan_s = plan.makespan
     stats.path_length = plan.path_length

@@ -405,6 +405,7 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
 
     stats = _finish(stats, rm, g_used, q_used, t0)
     if not connected() and incumbent is None:
+        stats.extra["feasible"] = None  # not proven either way
         raise NoPlanFound(
             f"start and target not connected after {g_used} pebble graphs and "
             f"{rm.attempts} connection attempts",
