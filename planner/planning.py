@@ -11,6 +11,7 @@ from scipy.optimize import linear_sum_assignment
 from .bounds import lower_bounds
 from .connect import sequenced_moves
 from .feasibility import feasibility
+from .lattice import lattice_waypoints
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
@@ -42,7 +43,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         raise NoPlanFound(proof.reason, stats)
     memo: dict = {}
     same = _same_set(problem.start, problem.target)
-    direct = None if same else _direct(problem, params, memo)
+    direct = None if same else _direct(problem, params, memo, deadline)
     if same:
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
@@ -50,7 +51,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     elif direct is not None and direct.final(problem):
         waypoints, sequential, _, label = direct.best
         if params.concurrent:
-            waypoints = shortcut(problem, waypoints)
+            waypoints = shortcut(problem, waypoints, deadline=deadline)
         result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                      problem.max_accel)
         stats = PlanStats(found=True, g=0, q=0, graphs=0, connections=direct.legs[label])
@@ -63,7 +64,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         def evaluate(roadmap, route):
             key = tuple(route)
             if key not in timed:
-                timed[key] = _timed(problem, params, retrieve(problem, roadmap, route), memo)
+                timed[key] = _timed(problem, params, retrieve(problem, roadmap, route), memo, deadline)
             return timed[key]
 
         incumbent = None if direct is None or direct.best is None else direct.best[2]
@@ -78,7 +79,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
                 best = (waypoints, sequential, makespan, route)
         waypoints, sequential, _, route = best
         if params.concurrent:
-            waypoints = shortcut(problem, waypoints)
+            waypoints = shortcut(problem, waypoints, deadline=deadline)
         result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                      problem.max_accel)
         stats.extra["sequential_steps"] = sequential
@@ -104,6 +105,11 @@ def _name_direct(stats: PlanStats, label: str) -> None:
     if label in ("one step", "sequenced"):
         stats.extra["route"] = [0, 1]
 
+
+#: From this many robots on, auto mode routes the swarm through a lattice
+#: (:mod:`planner.lattice`) right after the one-step try: below it the
+#: structured stages find shorter plans in a few milliseconds.
+LATTICE_MIN_ROBOTS = 60
 
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 
@@ -147,7 +153,7 @@ class _Direct:
         return not len(passage_points(problem)) or self.best[2] <= _GOOD_ENOUGH[-1] * lower_bounds(problem)[0]
 
 
-def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | None:
+def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float) -> _Direct | None:
     """Auto mode's tries, before any pebble graph is sampled (``None`` with fixed g and q).
 
     1. All robots at once, straight to their assigned targets, when that
@@ -178,9 +184,19 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | No
         if out.best[2] <= _GOOD_ENOUGH[1] * bound:
             out.accepted = True
             return out
+    if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
+        raw = lattice_waypoints(problem, deadline)
+        if raw is not None:
+            w = merge_steps(problem, _drop_idle(raw), deadline)
+            out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+            # the one-at-a-time stages rarely beat it with this many robots
+            out.accepted = True
+            return out
     for factor, stage in zip(_GOOD_ENOUGH, STAGES):
         if factor is not None and out.best is not None and out.best[2] <= factor * bound:
             out.accepted = True
+            return out
+        if time.perf_counter() > deadline:
             return out
         chain = stage_chain(problem, stage)
         if chain is None:  # a thinned placement: left to the roadmap
@@ -192,7 +208,7 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | No
         if raw is None:
             continue
         out.covered.add(stage)
-        out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo))
+        out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo, deadline))
     return out
 
 
@@ -245,7 +261,8 @@ def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarr
     return raw
 
 
-def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None = None):
+def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None = None,
+           deadline: float | None = None):
     """Merge, cut, schedule and merge again: ``(waypoints, sequential steps, makespan)``.
 
     ``memo`` maps waypoints already timed (by their bytes) to the result.
@@ -258,17 +275,17 @@ def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None
     key = waypoints.tobytes()
     if memo is not None and key in memo:
         return memo[key]
-    result = _timed_fresh(problem, params, waypoints)
+    result = _timed_fresh(problem, params, waypoints, deadline)
     if memo is not None:
         memo[key] = result
     return result
 
 
-def _timed_fresh(problem: Problem, params: PlannerParams, waypoints: np.ndarray):
+def _timed_fresh(problem: Problem, params: PlannerParams, waypoints: np.ndarray, deadline: float | None = None):
     sequential = len(waypoints) - 1
-    waypoints = merge_moves(problem, waypoints)
+    waypoints = merge_moves(problem, waypoints, deadline)
     if params.concurrent:
-        waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints)))
+        waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints), deadline), deadline)
     return waypoints, sequential, _makespan(problem, waypoints)
 
 
