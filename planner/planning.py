@@ -153,7 +153,7 @@ class _Direct:
         return not len(passage_points(problem)) or self.best[2] <= _GOOD_ENOUGH[-1] * lower_bounds(problem)[0]
 
 
-def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float) -> _Direct | None:
+def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float = float("inf")) -> _Direct | None:
     """Auto mode's tries, before any pebble graph is sampled (``None`` with fixed g and q).
 
     1. All robots at once, straight to their assigned targets, when that
