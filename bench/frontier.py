@@ -18,10 +18,13 @@ Cases (robot radius 1, margin 0.1, max speed and acceleration 2):
   is the line's length plus 8 % (coverage far below 10 %: the line must
   fit), three random convex obstacles as above.
 * ``clutter-K-mM``: ``K`` random convex obstacles of diameter 2 to 4 in a
-  40 x 40 workspace, random start and target.
-* ``density-P-mM``: random convex obstacles of diameter 3 to 6 added to a
-  40 x 40 workspace until their union covers ``P`` % of it, random start
-  and target.
+  40 x 40 workspace, random start and target in the largest component of
+  the free space (grown obstacles, shapely).
+* ``density-P-mM``: random convex obstacles of diameter 5 to 10 added to a
+  40 x 40 workspace, two at a time, until their union covers ``P`` % of
+  it; random start and target in the largest component of the free space
+  (a world whose main room cannot hold them is drawn again, from the
+  generator seeded ``[seed, attempt]``).
 * ``door-W``: a wall 2 thick across the middle of a 40 x 40 workspace with
   one door ``W`` wide; 10 robots start left of it and end right of it.
 * ``unsolvable-*``: a door 0.01 and one 1e-6 narrower than a robot needs
@@ -125,7 +128,7 @@ def _obstacles(rng, count: int, side_w: float, side_h: float, size) -> tuple:
     return tuple(out)
 
 
-def _free(shell: Problem, m: int, rng, lo=None, hi=None, avoid=None) -> np.ndarray:
+def _free(shell: Problem, m: int, rng, lo=None, hi=None, avoid=None, batches: int = 400) -> np.ndarray:
     """``m`` uniform, clear, separated points in the box ``[lo, hi]`` (default: the workspace)."""
     from planner.geometry import greedy_separated
 
@@ -134,7 +137,7 @@ def _free(shell: Problem, m: int, rng, lo=None, hi=None, avoid=None) -> np.ndarr
     hi = np.array([shell.width - clr, shell.height - clr]) if hi is None else np.minimum(
         hi, [shell.width - clr, shell.height - clr])
     pts = np.zeros((0, 2))
-    for _ in range(400):
+    for _ in range(batches):
         cand = rng.uniform(lo, hi, size=(max(256, 4 * m), 2))
         cand = cand[shell.env.points_clear(cand, clr)]
         if avoid is not None:
@@ -143,6 +146,20 @@ def _free(shell: Problem, m: int, rng, lo=None, hi=None, avoid=None) -> np.ndarr
         if len(pts) == m:
             return pts
     raise ValueError(f"cannot place {m} robots")
+
+
+def _outside_main_room(shell: Problem):
+    """A test of points that are not in the largest component of the free space
+    (shapely, obstacles grown by the clearance): robots drawn in the main room only."""
+    import shapely
+    from shapely.geometry import box
+
+    c = shell.clearance
+    grown = shapely.union_all([shapely.Polygon(o.vertices).buffer(c) for o in shell.obstacles])
+    free = box(c, c, shell.width - c, shell.height - c).difference(grown)
+    main = max(getattr(free, "geoms", [free]), key=lambda g: g.area)
+    shapely.prepare(main)
+    return lambda p: ~shapely.contains_xy(main, p[:, 0], p[:, 1])
 
 
 def _shell(w, h, obs) -> Problem:
@@ -189,13 +206,23 @@ def case_problem(case: Case, seed: int) -> Problem:
     if case.kind == "clutter":
         obs = _obstacles(rng, int(case.param), 40.0, 40.0, (2.0, 4.0))
         sh = _shell(40.0, 40.0, obs)
-        return Problem(40.0, 40.0, obs, RADIUS, MARGIN, _free(sh, m, rng), _free(sh, m, rng)).validate()
+        out = _outside_main_room(sh)
+        return Problem(40.0, 40.0, obs, RADIUS, MARGIN, _free(sh, m, rng, avoid=out),
+                       _free(sh, m, rng, avoid=out)).validate()
     if case.kind == "density":
-        obs = []
-        while _union_share(obs, 40.0, 40.0) < case.param / 100.0 if obs else True:
-            obs += list(_obstacles(rng, 4, 40.0, 40.0, (3.0, 6.0)))
-        sh = _shell(40.0, 40.0, tuple(obs))
-        return Problem(40.0, 40.0, tuple(obs), RADIUS, MARGIN, _free(sh, m, rng), _free(sh, m, rng)).validate()
+        for attempt in range(50):  # a world whose main room holds the robots
+            rng = np.random.default_rng([seed, attempt])
+            obs = []
+            while _union_share(obs, 40.0, 40.0) < case.param / 100.0 if obs else True:
+                obs += list(_obstacles(rng, 2, 40.0, 40.0, (5.0, 10.0)))
+            sh = _shell(40.0, 40.0, tuple(obs))
+            out = _outside_main_room(sh)
+            try:
+                start, target = _free(sh, m, rng, avoid=out, batches=40), _free(sh, m, rng, avoid=out, batches=40)
+            except ValueError:
+                continue
+            return Problem(40.0, 40.0, tuple(obs), RADIUS, MARGIN, start, target).validate()
+        raise ValueError(f"no {case.param:g} % world holds {m} robots")
     if case.kind in ("door", "halves"):
         w = case.param
         side = 40.0 if case.kind == "door" else math.sqrt(m * math.pi / COVERAGE)

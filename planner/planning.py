@@ -11,6 +11,7 @@ from scipy.optimize import linear_sum_assignment
 from .bounds import lower_bounds
 from .connect import sequenced_moves
 from .feasibility import feasibility
+from .freespace import free_roadmap_waypoints
 from .lattice import lattice_waypoints
 from .params import PlannerParams
 from .plan import Plan, PlanStats
@@ -209,6 +210,13 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             continue
         out.covered.add(stage)
         out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo, deadline))
+    if problem.obstacles and (out.best is None or out.best[2] > _GOOD_ENOUGH[-1] * bound):
+        if time.perf_counter() < deadline:
+            raw = free_roadmap_waypoints(problem, deadline)
+            if raw is not None:
+                w = merge_steps(problem, _drop_idle(raw), deadline)
+                out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+                out.accepted = True  # the pebble-graph roadmap rarely does better where this was needed
     return out
 
 
