@@ -119,9 +119,14 @@ def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.
     return FreeRoadmap(pts, pairs.reshape(-1, 2), problem.m)
 
 
-def free_roadmap_waypoints(problem: Problem, deadline: float, max_steps: int | None = None) -> np.ndarray | None:
+def free_roadmap_waypoints(problem: Problem, deadline: float, rng: np.random.Generator | None = None,
+                           max_steps: int | None = None, escapes: int = 60) -> np.ndarray | None:
     """Raw waypoints ``(K + 1, m, 2)`` from the start to the target along the free-space
-    roadmap, or ``None`` when routing stalls, a target is out of reach or the deadline passes."""
+    roadmap, or ``None`` when routing stalls, a target is out of reach or the deadline passes.
+
+    A time step in which nobody can move closer to a target becomes an *escape* step
+    (with ``rng``; at most ``escapes`` of them): robots, in random order, take a random
+    clear edge, wherever it leads, which unjams crowds that wait on each other."""
     from scipy.optimize import linear_sum_assignment
 
     m = problem.m
@@ -215,6 +220,18 @@ def free_roadmap_waypoints(problem: Problem, deadline: float, max_steps: int | N
                     where[i] = v
                     moved = True
                     break
+        if not moved and rng is not None and escapes > 0:
+            escapes -= 1
+            for i in rng.permutation(m).tolist():
+                nb = [u for u, _ in rm.nbr[where[i]]]
+                for v in rng.permutation(nb).tolist() if nb else []:
+                    d = closest_approach(pos[i], pts[v], pos, nxt)
+                    d[i] = np.inf
+                    if d.min() >= sep:
+                        nxt[i] = pts[v]
+                        where[i] = v
+                        moved = True
+                        break
         if moved:
             pos = nxt
             out.append(pos.copy())

@@ -44,7 +44,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         raise NoPlanFound(proof.reason, stats)
     memo: dict = {}
     same = _same_set(problem.start, problem.target)
-    direct = None if same else _direct(problem, params, memo, deadline)
+    direct = None if same else _direct(problem, params, memo, deadline, rng)
     if same:
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
@@ -154,7 +154,8 @@ class _Direct:
         return not len(passage_points(problem)) or self.best[2] <= _GOOD_ENOUGH[-1] * lower_bounds(problem)[0]
 
 
-def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float = float("inf")) -> _Direct | None:
+def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float = float("inf"),
+            rng: np.random.Generator | None = None) -> _Direct | None:
     """Auto mode's tries, before any pebble graph is sampled (``None`` with fixed g and q).
 
     1. All robots at once, straight to their assigned targets, when that
@@ -211,12 +212,15 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
         out.covered.add(stage)
         out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo, deadline))
     if problem.obstacles and (out.best is None or out.best[2] > _GOOD_ENOUGH[-1] * bound):
-        if time.perf_counter() < deadline:
-            raw = free_roadmap_waypoints(problem, deadline)
-            if raw is not None:
-                w = merge_steps(problem, _drop_idle(raw), deadline)
-                out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
-                out.accepted = True  # the pebble-graph roadmap rarely does better where this was needed
+        raw = None
+        for _ in range(4):  # escapes are random: a stalled routing may pass on another try
+            if raw is not None or time.perf_counter() > deadline:
+                break
+            raw = free_roadmap_waypoints(problem, deadline, rng)
+        if raw is not None:
+            w = merge_steps(problem, _drop_idle(raw), deadline)
+            out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+            out.accepted = True  # the pebble-graph roadmap rarely does better where this was needed
     return out
 
 
