@@ -28,7 +28,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .problem import Circle, Problem
 
-__all__ = ["corner_points", "expanded_placement", "guided_placements", "shortest_paths", "straight_lengths"]
+__all__ = ["Late", "corner_points", "expanded_placement", "guided_placements", "shortest_paths", "straight_lengths"]
 
 
 def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
@@ -116,7 +116,7 @@ def _corner_radius(problem: Problem, pts: np.ndarray) -> float | None:
     if n * (n - 1) // 2 <= _CORNER_PAIRS:
         return None
     area = max(float(np.ptp(pts[:, 0]) * np.ptp(pts[:, 1])), 1e-9)
-    return max(float(np.sqrt(2 * _CORNER_PAIRS * area / (np.pi * n * n))), 4 * problem.separation)
+    return max(float(np.sqrt(2 * _CORNER_PAIRS * area / (np.pi * n * n))), 3 * problem.separation)
 
 
 def _near_pairs(problem: Problem, pts: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -133,17 +133,30 @@ def _near_pairs(problem: Problem, pts: np.ndarray, corners: np.ndarray) -> tuple
     return np.repeat(np.arange(len(pts)), counts), np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
 
 
-def _corner_graph(problem: Problem):
-    """Corner points and their visibility graph as a sparse matrix of lengths (cached)."""
+class Late(RuntimeError):
+    """The deadline passed before a shortest-path computation ended (nothing is cached)."""
+
+
+def _corner_graph(problem: Problem, deadline: float | None = None):
+    """Corner points and their visibility graph as a sparse matrix of lengths (cached).
+    Raises :class:`Late` when ``deadline`` passes first."""
     cached = problem.__dict__.get("_corner_graph")
     if cached is not None:
         return cached
+    import time
+
     from scipy.sparse import coo_matrix
 
     corners = corner_points(problem)
     pairs = _corner_pairs(problem, corners)
     if len(pairs):
-        pairs = pairs[problem.env.segments_clear(corners[pairs[:, 0]], corners[pairs[:, 1]], problem.clearance)]
+        keep = np.zeros(len(pairs), bool)
+        for c0 in range(0, len(pairs), 8192):
+            if deadline is not None and time.perf_counter() > deadline:
+                raise Late("corner visibility graph")
+            sl = slice(c0, c0 + 8192)
+            keep[sl] = problem.env.segments_clear(corners[pairs[sl, 0]], corners[pairs[sl, 1]], problem.clearance)
+        pairs = pairs[keep]
     length = np.linalg.norm(corners[pairs[:, 0]] - corners[pairs[:, 1]], axis=1) if len(pairs) else np.zeros(0)
     n = len(corners)
     graph = coo_matrix((np.r_[length, length], (np.r_[pairs[:, 0], pairs[:, 1]], np.r_[pairs[:, 1], pairs[:, 0]])),
@@ -153,7 +166,7 @@ def _corner_graph(problem: Problem):
     return cached
 
 
-def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
+def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, deadline: float | None = None):
     """Shortest obstacle-avoiding path lengths ``(m, m)`` and a path builder.
 
     Returns ``(length, path)`` where ``path(i, j)`` is the ``(p, 2)``
@@ -165,7 +178,7 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     memo = problem.__dict__.setdefault("_shortest_paths", {})
     if key in memo:
         return memo[key]
-    memo[key] = result = _shortest_paths(problem, np.asarray(starts, float), np.asarray(targets, float))
+    memo[key] = result = _shortest_paths(problem, np.asarray(starts, float), np.asarray(targets, float), deadline)
     return result
 
 
@@ -187,14 +200,14 @@ def straight_lengths(problem: Problem, starts: np.ndarray, targets: np.ndarray) 
     return memo[key]
 
 
-def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
+def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, deadline: float | None = None):
     """Dijkstra from every start over one sparse graph: the starts, the corners and
     the targets, joined by clear segments (start-corner, corner-corner,
     corner-target; a clear start-target segment is taken directly)."""
     from scipy.sparse import bmat, coo_matrix, csr_matrix
     from scipy.sparse.csgraph import dijkstra
 
-    corners, graph_cc = _corner_graph(problem)
+    corners, graph_cc = _corner_graph(problem, deadline)
     direct = straight_lengths(problem, starts, targets)
     if len(corners) == 0:
         return direct, lambda i, j: np.stack([starts[i], targets[j]])

@@ -12,6 +12,7 @@ from .bounds import lower_bounds
 from .connect import sequenced_moves
 from .feasibility import feasibility
 from .freespace import free_roadmap_waypoints
+from .guide import Late
 from .lattice import lattice_waypoints
 from .params import PlannerParams
 from .plan import Plan, PlanStats
@@ -49,7 +50,12 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
                                      problem.max_speed, problem.max_accel)
-    elif direct is not None and direct.final(problem):
+    elif direct is not None and direct.best is None and time.perf_counter() > deadline:
+        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
+        stats.extra["feasible"] = None  # not proven either way
+        raise NoPlanFound(f"no plan within the time limit of {params.time_limit:g} s "
+                          f"(the direct tries used it up)", stats)
+    elif direct is not None and (direct.final(problem) or time.perf_counter() > deadline):
         waypoints, sequential, _, label = direct.best
         if params.concurrent:
             waypoints = shortcut(problem, waypoints, deadline=deadline)
@@ -111,6 +117,9 @@ def _name_direct(stats: PlanStats, label: str) -> None:
 #: (:mod:`planner.lattice`) right after the one-step try: below it the
 #: structured stages find shorter plans in a few milliseconds.
 LATTICE_MIN_ROBOTS = 60
+
+#: From this many obstacles on, a plan of the free-space roadmap ends the search.
+CLUTTER = 10
 
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 
@@ -194,6 +203,10 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             # the one-at-a-time stages rarely beat it with this many robots
             out.accepted = True
             return out
+    if len(problem.obstacles) >= CLUTTER:  # the stage that works among many obstacles, first
+        _free_space(problem, out, bound, deadline, rng)
+        if out.accepted:
+            return out
     for factor, stage in zip(_GOOD_ENOUGH, STAGES):
         if factor is not None and out.best is not None and out.best[2] <= factor * bound:
             out.accepted = True
@@ -206,22 +219,33 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
         if not chain:  # nothing to add (no placement needs expanding)
             out.covered.add(stage)
             continue
-        raw = _chain_waypoints(problem, chain)
+        raw = _chain_waypoints(problem, chain, deadline)
         if raw is None:
             continue
         out.covered.add(stage)
         out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo, deadline))
     if problem.obstacles and (out.best is None or out.best[2] > _GOOD_ENOUGH[-1] * bound):
-        raw = None
-        for _ in range(4):  # escapes are random: a stalled routing may pass on another try
-            if raw is not None or time.perf_counter() > deadline:
-                break
-            raw = free_roadmap_waypoints(problem, deadline, rng)
-        if raw is not None:
-            w = merge_steps(problem, _drop_idle(raw), deadline)
-            out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
-            out.accepted = True  # the pebble-graph roadmap rarely does better where this was needed
+        _free_space(problem, out, bound, deadline, rng)
     return out
+
+
+def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, rng) -> None:
+    """Offer the free-space roadmap's plan (:mod:`planner.freespace`), a few tries."""
+    if "free-space roadmap" in out.legs:
+        return
+    raw = None
+    for _ in range(4):  # escapes are random: a stalled routing may pass on another try
+        if raw is not None or time.perf_counter() > deadline:
+            break
+        raw = free_roadmap_waypoints(problem, deadline, rng)
+    if raw is None:
+        out.legs.setdefault("free-space roadmap", 0)
+        return
+    w = merge_steps(problem, _drop_idle(raw), deadline)
+    span = _makespan(problem, w)
+    out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, span))
+    # Among many obstacles the pebble-graph roadmap costs much and rarely does better.
+    out.accepted = len(problem.obstacles) >= CLUTTER or span <= _GOOD_ENOUGH[-1] * bound
 
 
 def _at_once(problem: Problem, pos: np.ndarray, nxt: np.ndarray) -> np.ndarray | None:
@@ -240,7 +264,7 @@ def _at_once(problem: Problem, pos: np.ndarray, nxt: np.ndarray) -> np.ndarray |
     return memo[key]
 
 
-def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarray] | None:
+def _chain_waypoints(problem: Problem, chain: list[np.ndarray], deadline: float = float("inf")) -> list[np.ndarray] | None:
     """Raw waypoints from ``chain[0]`` (the start) through each whole placement in turn.
 
     Each leg is, in this order of preference: every robot at once,
@@ -255,13 +279,18 @@ def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarr
     raw = [pos]
     bends = (False, True) if problem.obstacles else (False,)
     for nxt in chain[1:]:
+        if time.perf_counter() > deadline:
+            return None
         end = _at_once(problem, pos, nxt)
         if end is not None:
             pos = end
             raw.append(pos)
             continue
         for bent in bends:
-            seq = sequenced_moves(problem, pos, np.asarray(nxt, float), bent, groups=True)
+            try:
+                seq = sequenced_moves(problem, pos, np.asarray(nxt, float), bent, groups=True, deadline=deadline)
+            except Late:
+                return None
             if seq is not None:
                 break
         else:

@@ -320,6 +320,10 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     own = np.arange(m)
     rm = Roadmap(problem)
     rm.add_graph(pump(problem, problem.start, extra, rng), own)
+    if time.perf_counter() > deadline and incumbent is None:
+        stats = _finish(stats, rm, 0, 0, t0)
+        stats.extra["feasible"] = None
+        raise NoPlanFound("no plan within the time limit", stats)
     rm.add_graph(pump(problem, problem.target, extra, rng), own)
     source = (0, rm.graphs[0].signature(own))
     goal = (1, rm.graphs[1].signature(own))
