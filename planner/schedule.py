@@ -162,15 +162,19 @@ def schedule(problem: Problem, waypoints: np.ndarray, deadline: float | None = N
     # is a zero-length move).  Same closed form and arguments as layer by layer.
     rows_a, rows_b = np.concatenate([a, b]), np.concatenate([b, b])
     cols_a, cols_b = np.concatenate([a, held]), np.concatenate([b, held])
-    mv, pos = [], []  # per row: bits of the close moves, bits of the close positions
-    chunk = max(1, _CHUNK // len(cols_a))  # rows per call, to bound the temporaries
-    for r0 in range(0, len(rows_a), chunk):
-        if _late(deadline):
-            return w  # the plan's own order
-        ra, rb = rows_a[r0 : r0 + chunk, None], rows_b[r0 : r0 + chunk, None]
-        close = closest_approach(ra, rb, cols_a[None], cols_b[None]) < sep
-        mv += _bit_rows(close[:, :total])
-        pos += _bit_rows(close[:, total:])
+    # Only pairs whose swept boxes can meet are tested: a KD-tree of the
+    # columns' midpoints, searched around each row's midpoint.
+    ri, ci = _near_pairs(rows_a, rows_b, cols_a, cols_b, sep)
+    if _late(deadline):
+        return w  # the plan's own order
+    close = np.zeros(len(ri), bool)
+    for c0 in range(0, len(ri), _CHUNK):
+        sl = slice(c0, c0 + _CHUNK)
+        close[sl] = closest_approach(rows_a[ri[sl]], rows_b[ri[sl]], cols_a[ci[sl]], cols_b[ci[sl]]) < sep
+    ri, ci = ri[close], ci[close]
+    is_mv = ci < total
+    mv = _bit_sets(ri[is_mv], ci[is_mv], len(rows_a))  # per row: bits of the close moves
+    pos = _bit_sets(ri[~is_mv], ci[~is_mv] - total, len(rows_a))  # ... and of the close positions
     join_mv, pass_mv = mv[:total], mv[total:]
     join_pos, pass_pos = pos[:total], pos[total:]
 
@@ -233,6 +237,29 @@ def schedule(problem: Problem, waypoints: np.ndarray, deadline: float | None = N
         nxt[robot_of[sel]] = b[sel]
         out.append(nxt)
     return np.asarray(out)
+
+
+def _near_pairs(ra: np.ndarray, rb: np.ndarray, ca: np.ndarray, cb: np.ndarray, sep: float):
+    """``(row, column)`` pairs of moves ``ra -> rb`` and ``ca -> cb`` that can come closer than
+    ``sep``: their midpoints are within half of each one's length plus ``sep``."""
+    from scipy.spatial import cKDTree
+
+    half_c = 0.5 * np.linalg.norm(cb - ca, axis=1)
+    mid_r = 0.5 * (ra + rb)
+    reach = 0.5 * np.linalg.norm(rb - ra, axis=1) + float(half_c.max(initial=0.0)) + sep
+    lists = cKDTree(0.5 * (ca + cb)).query_ball_point(mid_r, reach, return_sorted=False)
+    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    rows = np.repeat(np.arange(len(ra)), counts)
+    cols = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
+    return rows, cols
+
+
+def _bit_sets(rows: np.ndarray, cols: np.ndarray, n: int) -> list[int]:
+    """Per row ``0..n-1``, the Python integer with bit ``c`` set for each of its columns."""
+    out = [0] * n
+    for r, c in zip(rows.tolist(), cols.tolist()):
+        out[r] |= 1 << c
+    return out
 
 
 def _bit_rows(mask: np.ndarray) -> list[int]:
