@@ -24,9 +24,10 @@ different approximate components are in different true components too.
 
 The test is necessary, not sufficient: equal counts do not prove that a
 plan exists.  A fast path skips the overlay when every obstacle is convex
-(a circle or a convex polygon) and the obstacles keep ``2 c`` from each
-other and from the walls: the workspace minus disjoint convex islands is
-connected.
+(a circle or a convex polygon), the obstacles keep ``2 c`` from each other
+and each comes closer than ``2 c`` to one wall at most (its box decides):
+the workspace minus disjoint convex islands, each meeting the boundary in
+one interval or not at all, is connected.
 """
 
 from __future__ import annotations
@@ -149,16 +150,18 @@ def feasibility(problem: Problem) -> Infeasible | None:
 
 
 def _islands_apart(problem: Problem) -> bool:
-    """Every obstacle convex and at least ``2 c`` from the others and the walls:
-    the free space is then one component (a box minus disjoint convex islands)."""
+    """Every obstacle convex, at least ``2 c`` from the others and near one wall at
+    most: the free space is then one component (a box minus disjoint convex islands)."""
     c2 = 2 * problem.clearance
     env = problem.env
     boxes = env.obstacle_boxes
     if len(boxes) == 0:
         return True
-    if (boxes[:, 0] < c2).any() or (boxes[:, 1] < c2).any():
-        return False
-    if (boxes[:, 2] > problem.width - c2).any() or (boxes[:, 3] > problem.height - c2).any():
+    # An island may bite into one wall (its grown self then meets the boundary in
+    # one interval, which leaves the rest connected), not two.
+    walls = ((boxes[:, 0] < c2).astype(int) + (boxes[:, 1] < c2) + (boxes[:, 2] > problem.width - c2)
+             + (boxes[:, 3] > problem.height - c2))
+    if (walls > 1).any():
         return False
     for poly in env.polygons:
         e1 = poly - np.roll(poly, 1, axis=0)

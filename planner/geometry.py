@@ -207,6 +207,7 @@ def _boxes_near(lo: np.ndarray, hi: np.ndarray, boxes: np.ndarray, clearance: fl
 
 
 _CHUNK = 1 << 21  # entries of a (rows x obstacle features) temporary
+_DENSE_PAIRS = 1 << 17  # up to this many (query, box) pairs the dense box test is used
 
 
 def _rows_per_chunk(width: int) -> int:
@@ -348,9 +349,11 @@ class Environment:
         ``clearance`` of each other can have; memory and time grow with the pairs
         found, not with segments x boxes.
         """
-        tree, owner, half = self._index(name, boxes)
-        if tree is None or len(a) == 0:
+        if len(a) == 0 or len(boxes) == 0:
             return np.zeros(0, int), np.zeros(0, int)
+        if len(a) * len(boxes) <= _DENSE_PAIRS:  # small: the dense test is cheaper
+            return np.nonzero(_boxes_near(np.minimum(a, b), np.maximum(a, b), boxes, clearance))
+        tree, owner, half = self._index(name, boxes)
         from scipy.spatial import cKDTree
 
         length = np.linalg.norm(b - a, axis=1)
@@ -374,12 +377,20 @@ class Environment:
         out = np.zeros((len(pts), n_poly), bool)
         if n_poly == 0 or len(pts) == 0:
             return out
+        a, b, _ = self.edges
+        if len(pts) * len(a) <= _DENSE_PAIRS:  # small: every edge at once
+            px, py = pts[:, 0:1], pts[:, 1:2]
+            ay, by = a[None, :, 1], b[None, :, 1]
+            straddle = (ay > py) != (by > py)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                xint = a[None, :, 0] + (py - ay) * (b[None, :, 0] - a[None, :, 0]) / np.where(by != ay, by - ay, 1.0)
+            cross = (straddle & (px < xint)).astype(np.int32)
+            return (np.add.reduceat(cross, self.edge_starts, axis=1) % 2) == 1
         boxes = self.obstacle_boxes[:n_poly]
         # a point inside a polygon lies in its box: a gap <= 0, below any positive clearance
         qi, pj = self._pairs_near("_poly_index", boxes, pts, pts, 1e-300)
         if len(qi) == 0:
             return out
-        a, b, _ = self.edges
         starts = self.edge_starts
         sizes = np.array([len(p) for p in self.polygons])
         cnt = sizes[pj]
@@ -498,7 +509,14 @@ class Environment:
                 ok[ii[bad]] = False
             # Then the segment lies wholly inside or wholly outside each polygon:
             # its first end decides (inside only within the polygon's box).
-            check = np.flatnonzero(ok)
+            boxes = self.obstacle_boxes[: len(self.polygons)]  # polygons come first
+            live = np.flatnonzero(ok)
+            if len(live) * len(boxes) <= _DENSE_PAIRS:
+                in_box = ((a[live, None] >= boxes[None, :, :2]) & (a[live, None] <= boxes[None, :, 2:])).all(axis=2)
+                check = live[in_box.any(axis=1)]
+            else:
+                qi, _ = self._pairs_near("_poly_index", boxes, a[live], a[live], 1e-300)
+                check = live[np.unique(qi)]
             if len(check):
                 ok[check] = ~self._inside(a[check]).any(axis=1)
         return ok

@@ -212,6 +212,8 @@ def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, d
     if len(corners) == 0:
         return direct, lambda i, j: np.stack([starts[i], targets[j]])
     m, c, n = len(starts), len(corners), len(targets)
+    if m * c * c <= 2_000_000 and _corner_radius(problem, corners) is None:
+        return _shortest_paths_dense(problem, starts, targets, corners, graph_cc, direct)
     # starts -> corners and corners -> targets in one clearance call
     si, sc = _near_pairs(problem, starts, corners)
     tj, tc = _near_pairs(problem, targets, corners)
@@ -239,6 +241,42 @@ def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, d
         while node >= m:  # a corner
             chain.append(node - m)
             node = int(pred[i, node])
+        return np.vstack([starts[i], corners[chain[::-1]], targets[j]])
+
+    return length, path
+
+
+def _shortest_paths_dense(problem, starts, targets, corners, graph_cc, direct):
+    """:func:`_shortest_paths` for few corners: all corner pairs' shortest distances
+    at once, then start -> first corner -> ... -> last corner -> target minimised
+    with arrays (cheaper than a graph search at this size)."""
+    from scipy.sparse.csgraph import shortest_path
+
+    dist_cc, pred_cc = shortest_path(graph_cc, directed=False, return_predecessors=True)
+    m, c, n = len(starts), len(corners), len(targets)
+    a = np.concatenate([np.repeat(starts, c, axis=0), np.tile(corners, (n, 1))])
+    b = np.concatenate([np.tile(corners, (m, 1)), np.repeat(targets, c, axis=0)])
+    ok = problem.env.segments_clear(a, b, problem.clearance)
+    vis_sc = ok[: m * c].reshape(m, c)
+    vis_ct = ok[m * c :].reshape(n, c).T
+    dsc = np.where(vis_sc, np.linalg.norm(starts[:, None] - corners[None], axis=2), np.inf)
+    dct = np.where(vis_ct, np.linalg.norm(corners[:, None] - targets[None], axis=2), np.inf)
+    via_first = dsc[:, :, None] + dist_cc[None]  # (m, c, c): start, first, last
+    first_of = np.argmin(via_first, axis=1)  # (m, c): best first corner per last corner
+    to_last = np.take_along_axis(via_first, first_of[:, None, :], axis=1)[:, 0, :]  # (m, c)
+    through = to_last[:, :, None] + dct[None]  # (m, c, n)
+    last_of = np.argmin(through, axis=1)  # (m, n)
+    length_via = np.take_along_axis(through, last_of[:, None, :], axis=1)[:, 0, :]
+    length = np.minimum(direct, length_via)
+
+    def path(i: int, j: int) -> np.ndarray:
+        if direct[i, j] <= length_via[i, j]:
+            return np.stack([starts[i], targets[j]])
+        last = int(last_of[i, j])
+        first = int(first_of[i, last])
+        chain = [last]
+        while chain[-1] != first:
+            chain.append(int(pred_cc[first, chain[-1]]))
         return np.vstack([starts[i], corners[chain[::-1]], targets[j]])
 
     return length, path

@@ -38,7 +38,9 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     problem.validate()
     t0 = time.perf_counter()
     deadline = t0 + params.time_limit
-    proof = feasibility(problem)
+    # A plan of one straight step needs no proof that a plan exists (and is cheap to find).
+    one_step = params.auto and _at_once(problem, problem.start, problem.target) is not None
+    proof = None if one_step else feasibility(problem)
     if proof is not None:
         stats = PlanStats(planning_time_s=time.perf_counter() - t0)
         stats.extra.update(feasible=False, infeasible_reason=proof.reason)
@@ -224,7 +226,7 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             continue
         out.covered.add(stage)
         out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo, deadline))
-    if problem.obstacles and (out.best is None or out.best[2] > _GOOD_ENOUGH[-1] * bound):
+    if problem.obstacles and out.best is None:  # nothing yet: before the pebble-graph roadmap
         _free_space(problem, out, bound, deadline, rng)
     return out
 

@@ -122,6 +122,7 @@ _PAIRS_LIMIT = 40_000_000
 """Largest table of pairwise tests :func:`schedule` computes up front; larger plans are
 scheduled layer by layer (:func:`_schedule_by_layer`, the same answers)."""
 _CHUNK = 250_000  # pairwise tests per closest-approach call
+_DENSE = 1 << 18  # up to this many pairs the scheduler's table is computed whole
 
 
 def schedule(problem: Problem, waypoints: np.ndarray, deadline: float | None = None) -> np.ndarray:
@@ -162,6 +163,10 @@ def schedule(problem: Problem, waypoints: np.ndarray, deadline: float | None = N
     # is a zero-length move).  Same closed form and arguments as layer by layer.
     rows_a, rows_b = np.concatenate([a, b]), np.concatenate([b, b])
     cols_a, cols_b = np.concatenate([a, held]), np.concatenate([b, held])
+    if len(rows_a) * len(cols_a) <= _DENSE:  # small: every pair at once
+        close = closest_approach(rows_a[:, None], rows_b[:, None], cols_a[None], cols_b[None]) < sep
+        mv, pos = _bit_rows(close[:, :total]), _bit_rows(close[:, total:])
+        return _layers(w, steps, m, total, mv[:total], mv[total:], pos[:total], pos[total:], robot_of, b, deadline)
     # Only pairs whose swept boxes can meet are tested: a KD-tree of the
     # columns' midpoints, searched around each row's midpoint.
     ri, ci = _near_pairs(rows_a, rows_b, cols_a, cols_b, sep)
@@ -175,9 +180,11 @@ def schedule(problem: Problem, waypoints: np.ndarray, deadline: float | None = N
     is_mv = ci < total
     mv = _bit_sets(ri[is_mv], ci[is_mv], len(rows_a))  # per row: bits of the close moves
     pos = _bit_sets(ri[~is_mv], ci[~is_mv] - total, len(rows_a))  # ... and of the close positions
-    join_mv, pass_mv = mv[:total], mv[total:]
-    join_pos, pass_pos = pos[:total], pos[total:]
+    return _layers(w, steps, m, total, mv[:total], mv[total:], pos[:total], pos[total:], robot_of, b, deadline)
 
+
+def _layers(w, steps, m, total, join_mv, pass_mv, join_pos, pass_pos, robot_of, b, deadline):
+    """:func:`schedule`'s layering from its tables of close pairs (bit sets per move)."""
     cur = list(range(m))  # each robot's position id
     all_held = (1 << m) - 1  # bits of every robot's position id
     last = [-1] * m  # layer of each robot's latest move
