@@ -40,6 +40,8 @@ from .problem import Problem
 
 __all__ = ["FreeRoadmap", "build_free_roadmap", "free_roadmap_waypoints"]
 
+_MAX_GRID = 250_000  # grid points of half a separation beyond which the stage does not run
+
 
 class FreeRoadmap:
     """Vertices ``points (V, 2)`` (the first ``m`` are the starts, the next ``m`` the
@@ -130,6 +132,9 @@ def free_roadmap_waypoints(problem: Problem, deadline: float, rng: np.random.Gen
     from scipy.optimize import linear_sum_assignment
 
     m = problem.m
+    step = 0.5 * problem.separation
+    if problem.width * problem.height / step**2 > _MAX_GRID:
+        return None  # a workspace this large is the lattice stage's
     rm = build_free_roadmap(problem)
     if time.perf_counter() > deadline:
         return None

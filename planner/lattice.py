@@ -155,9 +155,6 @@ def _assign(problem: Problem, lat: Lattice, pos: np.ndarray, robots: np.ndarray,
     reached by a clear straight move.  A move passing closer than the separation to
     another robot's position is charged a large penalty, and excluded where that
     robot is marked in ``hard``."""
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import min_weight_full_bipartite_matching
-
     n = len(robots)
     if n == 0:
         return np.zeros(0, int)
@@ -178,13 +175,25 @@ def _assign(problem: Problem, lat: Lattice, pos: np.ndarray, robots: np.ndarray,
         firm[idx] = _near_segments(problem, a[idx], b[idx], np.repeat(robots, k)[idx], pos[hard],
                                    cKDTree(pos[hard]), np.flatnonzero(hard))
         ok &= ~firm
-    w = d.ravel() ** 2 + 1e-9 + np.where(blocked, 1e6, 0.0)  # a zero weight would read as no edge
-    mat = csr_matrix((w[ok], (rows[ok], cols[ok])), shape=(n, lat.n))
-    try:
-        _, col = min_weight_full_bipartite_matching(mat)
-    except ValueError:  # no full matching among the candidates
+    # a zero weight would read as no edge; a blocked move costs as much as one a few cells longer
+    # (a huge penalty makes the sparse assignment solver crawl)
+    w = d.ravel() ** 2 + 1e-9 + np.where(blocked, 16 * lat.spacing**2, 0.0)
+    # Dense over the candidate vertices only (the sparse solver can crawl when the
+    # candidates barely hold a full matching); absent pairs cost a prohibitive amount.
+    from scipy.optimize import linear_sum_assignment
+
+    used, col_of = np.unique(cols[ok], return_inverse=True)
+    if len(used) < n:
         return None
-    return np.asarray(col, int)
+    big = 1e18
+    cost = np.full((n, len(used)), big)
+    cost[rows[ok], col_of] = w[ok]
+    r, c = linear_sum_assignment(cost)
+    if (cost[r, c] >= big).any():
+        return None  # no full matching among the candidates
+    out = np.empty(n, int)
+    out[r] = used[c]
+    return out
 
 
 def _conflicts(problem: Problem, a: np.ndarray, b: np.ndarray, moving: np.ndarray) -> np.ndarray:
@@ -241,6 +250,8 @@ def snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float,
     everyone = np.arange(m)
     vert = None
     for k in (16, 48, 144):  # more candidates where the lattice is coarse next to the formation
+        if time.perf_counter() > deadline:
+            return None
         vert = _assign(problem, lat, pos, everyone, np.zeros(lat.n, bool), k=k)
         if vert is not None:
             break

@@ -57,6 +57,11 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         stats.extra["feasible"] = None  # not proven either way
         raise NoPlanFound(f"no plan within the time limit of {params.time_limit:g} s "
                           f"(the direct tries used it up)", stats)
+    elif direct is not None and direct.best is None and problem.m >= ROADMAP_MAX_ROBOTS:
+        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
+        stats.extra["feasible"] = None  # not proven either way
+        raise NoPlanFound(f"no plan: the lattice and free-space stages failed, and with {problem.m} "
+                          f"robots the pebble-graph roadmap is not tried", stats)
     elif direct is not None and (direct.final(problem) or time.perf_counter() > deadline):
         waypoints, sequential, _, label = direct.best
         if params.concurrent:
@@ -119,6 +124,11 @@ def _name_direct(stats: PlanStats, label: str) -> None:
 #: (:mod:`planner.lattice`) right after the one-step try: below it the
 #: structured stages find shorter plans in a few milliseconds.
 LATTICE_MIN_ROBOTS = 60
+
+#: From this many robots on, auto mode does not build the pebble-graph roadmap when its
+#: direct tries found nothing: its interference graphs grow with the square of the
+#: candidate pairs (gigabytes at 1000 robots) and it never connected such problems.
+ROADMAP_MAX_ROBOTS = 300
 
 #: From this many obstacles on, a plan of the free-space roadmap ends the search.
 CLUTTER = 10
