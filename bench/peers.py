@@ -82,13 +82,16 @@ __all__ = [
     "PLANNERS",
     "Outcome",
     "Run",
+    "LACAM",
     "STRAIGHT",
     "SWARMFORM",
     "dense_cases",
     "format_report",
     "main",
     "ompl_available",
+    "lacam_available",
     "run_case",
+    "run_lacam",
     "run_ompl",
     "run_straight",
     "run_swarmform",
@@ -114,9 +117,11 @@ DEFAULT_PAPER = (
 
 SWARMFORM = "swarmform"
 STRAIGHT = "straight lines"
+LACAM = "LaCAM (grid)"
 OMPL_PLANNERS = ("RRTConnect", "PRM")
-PLANNERS = (SWARMFORM, *OMPL_PLANNERS, STRAIGHT)
-_PLANNER_KEYS = {"swarmform": SWARMFORM, "rrtconnect": "RRTConnect", "prm": "PRM", "straight": STRAIGHT}
+PLANNERS = (SWARMFORM, *OMPL_PLANNERS, LACAM, STRAIGHT)
+_PLANNER_KEYS = {"swarmform": SWARMFORM, "rrtconnect": "RRTConnect", "prm": "PRM", "lacam": LACAM,
+                 "straight": STRAIGHT}
 
 _GRACE_S = 5.0  # extra wall time before a silent OMPL child is killed [s]
 
@@ -193,6 +198,102 @@ def run_straight(problem: Problem) -> Outcome:
     waypoints = straight_line_waypoints(problem)
     elapsed = time.perf_counter() - t0
     return Outcome(timed_plan(problem, waypoints), elapsed, "found")
+
+
+def lacam_available() -> bool:
+    """Whether pymapf's LaCAM imports."""
+    try:
+        from pymapf.algorithms.lacam import LaCAM  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def run_lacam(problem: Problem, time_limit: float, seed: int) -> Outcome:
+    """LaCAM (pymapf) on a grid of the workspace, after the assignment.
+
+    The grid's cells are ``sqrt(2)`` separations wide: the smallest cell for
+    which every grid MAPF step (distinct cells, no swaps, following allowed)
+    keeps two robots the separation apart.  A cell is free when its centre
+    is clear and so is its segment to every free 4-neighbour (found by
+    dropping cells until that holds), so that grid moves never clip an
+    obstacle.  Starts and targets go to distinct free cells (minimum sum of
+    squared distances), starts are assigned targets (minimum sum of grid
+    cell distances), and LaCAM solves the labeled grid problem.  The plan:
+    every robot straight to its start cell, the grid paths one time step
+    per step, every robot straight to its target; checked exactly like the
+    others (a robot's first or last straight move may clip another's).
+    """
+    from pymapf.algorithms.lacam import LaCAM
+    from pymapf.core.grid import GridMap
+    from pymapf.core.solver import Agent, MAPFProblem
+    from scipy.optimize import linear_sum_assignment
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+    from scipy.spatial import cKDTree
+
+    t0 = time.perf_counter()
+    c = problem.clearance
+    a = math.sqrt(2.0) * problem.separation * (1 + 1e-6)
+    nx = int((problem.width - 2 * c) // a) + 1
+    ny = int((problem.height - 2 * c) // a) + 1
+    xs, ys = c + a * np.arange(nx), c + a * np.arange(ny)
+    centres = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1)  # (nx, ny, 2)
+    free = problem.env.points_clear(centres.reshape(-1, 2), c).reshape(nx, ny)
+    for _ in range(nx + ny):  # drop cells with a blocked edge to a free neighbour
+        bad = np.zeros_like(free)
+        for dx, dy in ((1, 0), (0, 1)):
+            u = free[: nx - dx, : ny - dy] & free[dx:, dy:]
+            pa = centres[: nx - dx, : ny - dy][u]
+            pb = centres[dx:, dy:][u]
+            clear = problem.env.segments_clear(pa, pb, c)
+            blocked = np.zeros_like(u)
+            blocked[u] = ~clear
+            bad[: nx - dx, : ny - dy] |= blocked
+        if not bad.any():
+            break
+        free &= ~bad
+    cells = np.argwhere(free)
+    pts = centres[free]
+    if len(pts) < problem.m:
+        return Outcome(None, time.perf_counter() - t0, "grid too small")
+
+    def snap(placement):
+        k = min(16, len(pts))
+        d, j = cKDTree(pts).query(placement, k=k)
+        w = np.asarray(d).ravel() ** 2 + 1e-9
+        mat = csr_matrix((w, (np.repeat(np.arange(len(placement)), k), np.asarray(j).ravel())),
+                         shape=(len(placement), len(pts)))
+        return min_weight_full_bipartite_matching(mat)[1]
+
+    try:
+        sc, tc = snap(problem.start), snap(problem.target)
+    except ValueError:
+        return Outcome(None, time.perf_counter() - t0, "no cells")
+    manhattan = np.abs(cells[sc][:, None] - cells[tc][None]).sum(axis=2)
+    _, goal = linear_sum_assignment(manhattan)
+    grid = GridMap((~free).T.astype(int).tolist())  # rows = y, columns = x
+    agents = [Agent(f"r{i}", (int(cells[sc[i], 1]), int(cells[sc[i], 0])),
+                    (int(cells[tc[goal[i]], 1]), int(cells[tc[goal[i]], 0]))) for i in range(problem.m)]
+    remaining = time_limit - (time.perf_counter() - t0)
+    if remaining <= 0:
+        return Outcome(None, time.perf_counter() - t0, "Timeout")
+    sol = LaCAM(time_limit=remaining, seed=seed).solve(MAPFProblem(grid, agents))
+    if sol is None:
+        return Outcome(None, time.perf_counter() - t0, "no plan")
+    paths = [sol.paths[f"r{i}"] for i in range(problem.m)]
+    steps = max(len(p) for p in paths)
+    w = [problem.start]
+    for t in range(steps):
+        w.append(np.array([centres[p[min(t, len(p) - 1)][1], p[min(t, len(p) - 1)][0]] for p in paths]))
+    w.append(problem.target[goal])
+    elapsed = time.perf_counter() - t0
+    return Outcome(timed_plan(problem, _drop_repeats(np.asarray(w))), elapsed, "found")
+
+
+def _drop_repeats(w: np.ndarray) -> np.ndarray:
+    keep = [0] + [k for k in range(1, len(w)) if not np.array_equal(w[k], w[k - 1])]
+    return w[keep]
 
 
 def ompl_available() -> bool:
@@ -411,6 +512,8 @@ def run_case(case: Case, seed: int, time_limit: float, planners=PLANNERS,
             out = run_swarmform(problem, time_limit, rng)
         elif name == STRAIGHT:
             out = run_straight(problem)
+        elif name == LACAM:
+            out = run_lacam(problem, time_limit, seed)
         else:
             out = run_ompl(problem, name, time_limit, seed + 1, simplify_s)
         runs.append(_record(case, seed, name, problem, lb, out))
@@ -566,6 +669,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
     if any(p in OMPL_PLANNERS for p in planners) and not ompl_available():
         planners = [p for p in planners if p not in OMPL_PLANNERS]
         note = " (ompl is not importable: OMPL planners skipped)"
+    if LACAM in planners and not lacam_available():
+        planners = [p for p in planners if p != LACAM]
+        note += " (pymapf is not importable: LaCAM skipped)"
     simplify_s = args.simplify if args.simplify is not None else min(1.0, 0.1 * limit)
     if SWARMFORM in planners:
         warm_up_planner(limit)  # OMPL's time starts after its imports too

@@ -18,6 +18,7 @@ True
 ['durations', 'margin', 'max_accel', 'max_speed']
 """
 
+from .feasibility import Infeasible, feasibility
 from .formations import DEFAULT_COUNTS, FORMATIONS, formation_shape, place_formation
 from .params import PlannerParams
 from .plan import Plan, PlanFileError, PlanStats
@@ -31,6 +32,7 @@ __all__ = [
     "Clearance",
     "DEFAULT_COUNTS",
     "FORMATIONS",
+    "Infeasible",
     "NoPlanFound",
     "Plan",
     "PlanFileError",
@@ -41,6 +43,7 @@ __all__ = [
     "Problem",
     "ProblemError",
     "check_plan",
+    "feasibility",
     "formation_shape",
     "min_clearance",
     "place_formation",

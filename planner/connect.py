@@ -316,7 +316,7 @@ class Sequenced:
 
 
 def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool = False,
-                    groups: bool = False) -> Sequenced | None:
+                    groups: bool = False, deadline: float | None = None) -> Sequenced | None:
     """Move the robots on ``va`` to ``vb`` one at a time, ordered by their conflicts.
 
     Robots go along a minimum-sum-of-squares assignment: of the straight
@@ -352,7 +352,7 @@ def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool
     m = len(va)
     path_of = None
     if bent and problem.obstacles:
-        length, path_of = shortest_paths(problem, va, vb)
+        length, path_of = shortest_paths(problem, va, vb, deadline)
     else:
         length = straight_lengths(problem, va, vb)
     big = 1e18

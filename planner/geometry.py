@@ -206,6 +206,32 @@ def _boxes_near(lo: np.ndarray, hi: np.ndarray, boxes: np.ndarray, clearance: fl
     return (gap_x < clearance) & (gap_y < clearance)
 
 
+_CHUNK = 1 << 21  # entries of a (rows x obstacle features) temporary
+_DENSE_PAIRS = 1 << 17  # up to this many (query, box) pairs the dense box test is used
+
+
+def _rows_per_chunk(width: int) -> int:
+    return max(1, _CHUNK // max(width, 1))
+
+
+def _ball_pairs(tree, centers: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(query, item)`` index pairs with the item's indexed point within ``radius[query]``."""
+    if len(centers) == 0 or tree is None:
+        return np.zeros(0, int), np.zeros(0, int)
+    lists = tree.query_ball_point(centers, radius, return_sorted=False)
+    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    qi = np.repeat(np.arange(len(centers)), counts)
+    items = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
+    return qi, items
+
+
+def _box_gap_ok(lo, hi, boxes, clearance) -> np.ndarray:
+    """Row-wise :func:`_boxes_near`: box ``[lo[k], hi[k]]`` within ``clearance`` of ``boxes[k]``."""
+    gap_x = np.maximum(boxes[:, 0] - hi[:, 0], lo[:, 0] - boxes[:, 2])
+    gap_y = np.maximum(boxes[:, 1] - hi[:, 1], lo[:, 1] - boxes[:, 3])
+    return (gap_x < clearance) & (gap_y < clearance)
+
+
 @dataclass(frozen=True, eq=False)
 class Environment:
     """The static world in array form: walls, polygon edges and circles.
@@ -284,17 +310,101 @@ class Environment:
         self.edges
         return self.__dict__["_starts"]
 
+    def _index(self, name: str, boxes: np.ndarray):
+        """A KD-tree over ``boxes``' pieces (cached): each box is cut along its longer
+        side into pieces of at most ``piece`` wide, and the tree holds their centres;
+        returns ``(tree, piece owner, largest piece half-diagonal)``."""
+        cached = self.__dict__.get(name)
+        if cached is None:
+            from scipy.spatial import cKDTree
+
+            if len(boxes) == 0:
+                cached = (None, np.zeros(0, int), 0.0)
+            else:
+                ext = boxes[:, 2:] - boxes[:, :2]
+                piece = max(float(np.median(ext.max(axis=1))), 1e-9)
+                n = np.maximum(1, np.ceil(ext.max(axis=1) / piece).astype(int))
+                owner = np.repeat(np.arange(len(boxes)), n)
+                k = np.arange(len(owner)) - np.repeat(np.cumsum(n) - n, n)
+                f0, f1 = k / n[owner], (k + 1) / n[owner]
+                lo, hi = boxes[owner, :2], boxes[owner, 2:]
+                # cut along each box's longer side
+                along_x = (ext[owner, 0] >= ext[owner, 1])[:, None]
+                span = hi - lo
+                plo = np.where(along_x, lo + np.stack([f0 * span[:, 0], 0 * f0], 1), lo + np.stack([0 * f0, f0 * span[:, 1]], 1))
+                phi = np.where(along_x, lo + np.stack([f1 * span[:, 0], span[:, 1]], 1), lo + np.stack([span[:, 0], f1 * span[:, 1]], 1))
+                half = 0.5 * float(np.linalg.norm(phi - plo, axis=1).max())
+                cached = (cKDTree(0.5 * (plo + phi)), owner, half)
+            object.__setattr__(self, name, cached)
+        return cached
+
+    def _pairs_near(self, name: str, boxes: np.ndarray, a: np.ndarray, b: np.ndarray,
+                    clearance: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(query, box)`` pairs for segments ``a -> b`` (points: ``a == b``) and
+        ``boxes``: every pair whose segment comes within ``clearance`` of the box, and
+        only pairs passing the box-gap test of :func:`_boxes_near`.
+
+        The segments are cut into pieces about as long as the index's box pieces, and
+        two KD-trees of piece centres meet at the distance that two pieces within
+        ``clearance`` of each other can have; memory and time grow with the pairs
+        found, not with segments x boxes.
+        """
+        if len(a) == 0 or len(boxes) == 0:
+            return np.zeros(0, int), np.zeros(0, int)
+        if len(a) * len(boxes) <= _DENSE_PAIRS:  # small: the dense test is cheaper
+            return np.nonzero(_boxes_near(np.minimum(a, b), np.maximum(a, b), boxes, clearance))
+        tree, owner, half = self._index(name, boxes)
+        from scipy.spatial import cKDTree
+
+        length = np.linalg.norm(b - a, axis=1)
+        piece = max(2.0 * half, float(length.sum()) / 4_000_000, 1e-9)
+        n = np.maximum(1, np.ceil(length / piece).astype(int))
+        seg = np.repeat(np.arange(len(a)), n)
+        k = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+        f = ((k + 0.5) / n[seg])[:, None]
+        centres = a[seg] + f * (b[seg] - a[seg])
+        reach = float((length / n).max(initial=0.0)) / 2 + half + max(clearance, 0.0) + 1e-9 * (1 + half)
+        hits = cKDTree(centres).sparse_distance_matrix(tree, reach, output_type="ndarray")
+        qi, bi = seg[hits["i"]], owner[hits["j"]]  # repeats are harmless: every use ORs or ANDs
+        ok = _box_gap_ok(np.minimum(a[qi], b[qi]), np.maximum(a[qi], b[qi]), boxes[bi], clearance)
+        return qi[ok], bi[ok]
+
     def _inside(self, pts: np.ndarray) -> np.ndarray:
-        """``(N, P)`` even-odd inside test against every polygon at once."""
+        """``(N, P)`` even-odd inside test against every polygon at once (only the
+        pairs whose polygon's box holds the point are computed)."""
+        pts = np.asarray(pts, float).reshape(-1, 2)
+        n_poly = len(self.polygons)
+        out = np.zeros((len(pts), n_poly), bool)
+        if n_poly == 0 or len(pts) == 0:
+            return out
         a, b, _ = self.edges
-        px = pts[:, 0:1]
-        py = pts[:, 1:2]
-        ay, by = a[None, :, 1], b[None, :, 1]
+        if len(pts) * len(a) <= _DENSE_PAIRS:  # small: every edge at once
+            px, py = pts[:, 0:1], pts[:, 1:2]
+            ay, by = a[None, :, 1], b[None, :, 1]
+            straddle = (ay > py) != (by > py)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                xint = a[None, :, 0] + (py - ay) * (b[None, :, 0] - a[None, :, 0]) / np.where(by != ay, by - ay, 1.0)
+            cross = (straddle & (px < xint)).astype(np.int32)
+            return (np.add.reduceat(cross, self.edge_starts, axis=1) % 2) == 1
+        boxes = self.obstacle_boxes[:n_poly]
+        # a point inside a polygon lies in its box: a gap <= 0, below any positive clearance
+        qi, pj = self._pairs_near("_poly_index", boxes, pts, pts, 1e-300)
+        if len(qi) == 0:
+            return out
+        starts = self.edge_starts
+        sizes = np.array([len(p) for p in self.polygons])
+        cnt = sizes[pj]
+        pair = np.repeat(np.arange(len(qi)), cnt)
+        e = np.repeat(starts[pj], cnt) + (np.arange(len(pair)) - np.repeat(np.cumsum(cnt) - cnt, cnt))
+        px, py = pts[qi[pair], 0], pts[qi[pair], 1]
+        ay, by = a[e, 1], b[e, 1]
         straddle = (ay > py) != (by > py)
         with np.errstate(invalid="ignore", divide="ignore"):
-            xint = a[None, :, 0] + (py - ay) * (b[None, :, 0] - a[None, :, 0]) / np.where(by != ay, by - ay, 1.0)
-        cross = (straddle & (px < xint)).astype(np.int32)
-        return (np.add.reduceat(cross, self.edge_starts, axis=1) % 2) == 1
+            xint = a[e, 0] + (py - ay) * (b[e, 0] - a[e, 0]) / np.where(by != ay, by - ay, 1.0)
+        cross = straddle & (px < xint)
+        odd = (np.bincount(pair[cross], minlength=len(qi)) % 2) == 1
+        out[qi[odd], pj[odd]] = True
+        return out
 
     def wall_clearance(self, p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, float)
@@ -304,6 +414,11 @@ class Environment:
     def point_clearance_detail(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clearance of each point and what attains it (obstacle index, -1 = wall)."""
         pts = np.asarray(points, float).reshape(-1, 2)
+        width = len(self.circle_radii) + len(self.edges[0])
+        rows = _rows_per_chunk(width)
+        if len(pts) > rows:
+            parts = [self.point_clearance_detail(pts[r : r + rows]) for r in range(0, len(pts), rows)]
+            return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         n = len(pts)
         best = self.wall_clearance(pts)
         who = np.full(n, -1)
@@ -341,9 +456,13 @@ class Environment:
             object.__setattr__(self, "_boxes", cached)
         return cached
 
-    def _near_obstacles(self, lo: np.ndarray, hi: np.ndarray, clearance: float) -> np.ndarray:
-        """Which boxes ``[lo, hi]`` come within ``clearance`` of some obstacle's box."""
-        return _boxes_near(lo, hi, self.obstacle_boxes, clearance).any(axis=1)
+    def _near_obstacles(self, a: np.ndarray, b: np.ndarray, clearance: float) -> np.ndarray:
+        """Which segments ``a -> b`` may come within ``clearance`` of an obstacle (every one
+        that does, among those whose box comes within ``clearance`` of the obstacle's box)."""
+        qi, _ = self._pairs_near("_obstacle_index", self.obstacle_boxes, a, b, clearance)
+        out = np.zeros(len(a), bool)
+        out[qi] = True
+        return out
 
     def segments_clear(self, a: np.ndarray, b: np.ndarray, clearance: float) -> np.ndarray:
         """Whether centres moving along ``a -> b`` keep ``clearance`` everywhere (exact).
@@ -356,7 +475,7 @@ class Environment:
         a = np.asarray(a, float).reshape(-1, 2)
         b = np.asarray(b, float).reshape(-1, 2)
         ok = np.minimum(self.wall_clearance(a), self.wall_clearance(b)) >= clearance
-        near = ok & self._near_obstacles(np.minimum(a, b), np.maximum(a, b), clearance)
+        near = ok & self._near_obstacles(a, b, clearance)
         if near.any():
             ok[near] = self._segments_keep(a[near], b[near], clearance)
         return ok
@@ -372,23 +491,33 @@ class Environment:
         """
         ok = np.ones(len(a), bool)
         if len(self.circle_radii):
-            d = point_segment_distance(self.circle_centers[None], a[:, None], b[:, None])
-            ok &= (d - self.circle_radii[None] >= clearance).all(axis=1)
+            n_poly = len(self.polygons)
+            qi, oi = self._pairs_near("_obstacle_index", self.obstacle_boxes, a, b, clearance)
+            circ = oi >= n_poly
+            qi, ci = qi[circ], oi[circ] - n_poly
+            d = point_segment_distance(self.circle_centers[ci], a[qi], b[qi])
+            ok[qi[d - self.circle_radii[ci] < clearance]] = False
         if self.polygons and clearance > 0:  # a polygon's set distance is never below 0
             ea, eb, _ = self.edges
             # Only (segment, edge) pairs whose bounding boxes come within
             # ``clearance`` can fail: a box gap bounds the distance from below,
-            # and a crossing needs overlapping boxes.
-            ii, ee = np.nonzero(_boxes_near(np.minimum(a, b), np.maximum(a, b), self.edge_boxes, clearance))
+            # and a crossing needs overlapping boxes.  The index finds them.
+            ii, ee = self._pairs_near("_edge_index", self.edge_boxes, a, b, clearance)
             if len(ii):
                 bad = _segment_edge_close(a[ii, 0], a[ii, 1], b[ii, 0], b[ii, 1],
                                           ea[ee, 0], ea[ee, 1], eb[ee, 0], eb[ee, 1], clearance)
                 ok[ii[bad]] = False
+            # Then the segment lies wholly inside or wholly outside each polygon:
+            # its first end decides (inside only within the polygon's box).
             boxes = self.obstacle_boxes[: len(self.polygons)]  # polygons come first
-            # A first end inside a polygon lies in the polygon's box.
-            in_box = ((a[:, None] >= boxes[None, :, :2]) & (a[:, None] <= boxes[None, :, 2:])).all(axis=2)
-            check = ok & in_box.any(axis=1)
-            if check.any():
+            live = np.flatnonzero(ok)
+            if len(live) * len(boxes) <= _DENSE_PAIRS:
+                in_box = ((a[live, None] >= boxes[None, :, :2]) & (a[live, None] <= boxes[None, :, 2:])).all(axis=2)
+                check = live[in_box.any(axis=1)]
+            else:
+                qi, _ = self._pairs_near("_poly_index", boxes, a[live], a[live], 1e-300)
+                check = live[np.unique(qi)]
+            if len(check):
                 ok[check] = ~self._inside(a[check]).any(axis=1)
         return ok
 
@@ -398,7 +527,7 @@ class Environment:
         ok = self.wall_clearance(p) >= clearance
         near = ok & self._near_obstacles(p, p, clearance)
         if near.any():
-            ok[near] = self.point_clearance(p[near]) >= clearance
+            ok[near] = self._segments_keep(p[near], p[near], clearance)  # a point is a zero-length segment
         return ok
 
     def segment_clearance_detail(self, a: np.ndarray, b: np.ndarray):
@@ -414,6 +543,10 @@ class Environment:
         """
         a = np.asarray(a, float).reshape(-1, 2)
         b = np.asarray(b, float).reshape(-1, 2)
+        rows = _rows_per_chunk(3 * (len(self.circle_radii) + len(self.edges[0])))
+        if len(a) > rows:
+            parts = [self.segment_clearance_detail(a[r : r + rows], b[r : r + rows]) for r in range(0, len(a), rows)]
+            return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         n = len(a)
         best = np.minimum(self.wall_clearance(a), self.wall_clearance(b))
         who = np.full(n, -1)

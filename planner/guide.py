@@ -28,7 +28,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .problem import Circle, Problem
 
-__all__ = ["corner_points", "expanded_placement", "guided_placements", "shortest_paths", "straight_lengths"]
+__all__ = ["Late", "corner_points", "expanded_placement", "guided_placements", "shortest_paths", "straight_lengths"]
 
 
 def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
@@ -89,35 +89,84 @@ def _visible(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return ok.reshape(len(a), len(b))
 
 
-def _visible_among(problem: Problem, pts: np.ndarray) -> np.ndarray:
-    """``_visible(problem, pts, pts)``, testing each unordered pair once (the test is symmetric)."""
-    i, j = np.triu_indices(len(pts), k=1)
-    vis = np.zeros((len(pts), len(pts)), bool)
-    vis[i, j] = problem.env.segments_clear(pts[i], pts[j], problem.clearance)
-    vis |= vis.T
-    return vis
+#: Corner pairs tested for visibility at most (about): with more corners only
+#: pairs closer than a radius are tested, chosen so that about this many are.
+_CORNER_PAIRS = 40_000
 
 
-def _corner_graph(problem: Problem):
-    """Corner points with all-pairs shortest distances and predecessors (cached)."""
+def _corner_pairs(problem: Problem, pts: np.ndarray) -> np.ndarray:
+    """``(P, 2)`` pairs ``i < j`` of corner points whose visibility is tested: all of
+    them, or with many corners those closer than a radius that keeps about
+    :data:`_CORNER_PAIRS` pairs (shortest paths then use chains of shorter
+    visible segments, found in time and memory linear in the pairs)."""
+    n = len(pts)
+    radius = _corner_radius(problem, pts)
+    if radius is None:
+        i, j = np.triu_indices(n, k=1)
+        return np.stack([i, j], axis=1)
+    from scipy.spatial import cKDTree
+
+    return cKDTree(pts).query_pairs(radius, output_type="ndarray")
+
+
+def _corner_radius(problem: Problem, pts: np.ndarray) -> float | None:
+    """``None`` (every pair) when the corners are few, else the radius that keeps about
+    :data:`_CORNER_PAIRS` pairs of them (at least four separations)."""
+    n = len(pts)
+    if n * (n - 1) // 2 <= _CORNER_PAIRS:
+        return None
+    area = max(float(np.ptp(pts[:, 0]) * np.ptp(pts[:, 1])), 1e-9)
+    return max(float(np.sqrt(2 * _CORNER_PAIRS * area / (np.pi * n * n))), 3 * problem.separation)
+
+
+def _near_pairs(problem: Problem, pts: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(point, corner)`` index pairs whose segments are tested: all, or those within
+    the corner graph's radius when the corners are many."""
+    radius = _corner_radius(problem, corners)
+    if radius is None:
+        i, j = np.divmod(np.arange(len(pts) * len(corners)), len(corners))
+        return i, j
+    from scipy.spatial import cKDTree
+
+    lists = cKDTree(corners).query_ball_point(pts, radius)
+    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    return np.repeat(np.arange(len(pts)), counts), np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
+
+
+class Late(RuntimeError):
+    """The deadline passed before a shortest-path computation ended (nothing is cached)."""
+
+
+def _corner_graph(problem: Problem, deadline: float | None = None):
+    """Corner points and their visibility graph as a sparse matrix of lengths (cached).
+    Raises :class:`Late` when ``deadline`` passes first."""
     cached = problem.__dict__.get("_corner_graph")
     if cached is not None:
         return cached
-    corners = corner_points(problem)
-    if len(corners) == 0:
-        cached = (corners, None, None)
-    else:
-        from scipy.sparse.csgraph import shortest_path
+    import time
 
-        vis_cc = _visible_among(problem, corners)
-        dcc = np.where(vis_cc, np.linalg.norm(corners[:, None] - corners[None], axis=2), 0.0)
-        dist_cc, pred_cc = shortest_path(dcc, directed=False, return_predecessors=True)
-        cached = (corners, np.where(np.isfinite(dist_cc), dist_cc, np.inf), pred_cc)
+    from scipy.sparse import coo_matrix
+
+    corners = corner_points(problem)
+    pairs = _corner_pairs(problem, corners)
+    if len(pairs):
+        keep = np.zeros(len(pairs), bool)
+        for c0 in range(0, len(pairs), 8192):
+            if deadline is not None and time.perf_counter() > deadline:
+                raise Late("corner visibility graph")
+            sl = slice(c0, c0 + 8192)
+            keep[sl] = problem.env.segments_clear(corners[pairs[sl, 0]], corners[pairs[sl, 1]], problem.clearance)
+        pairs = pairs[keep]
+    length = np.linalg.norm(corners[pairs[:, 0]] - corners[pairs[:, 1]], axis=1) if len(pairs) else np.zeros(0)
+    n = len(corners)
+    graph = coo_matrix((np.r_[length, length], (np.r_[pairs[:, 0], pairs[:, 1]], np.r_[pairs[:, 1], pairs[:, 0]])),
+                       shape=(n, n)).tocsr()
+    cached = (corners, graph)
     problem.__dict__["_corner_graph"] = cached
     return cached
 
 
-def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
+def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, deadline: float | None = None):
     """Shortest obstacle-avoiding path lengths ``(m, m)`` and a path builder.
 
     Returns ``(length, path)`` where ``path(i, j)`` is the ``(p, 2)``
@@ -129,7 +178,7 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
     memo = problem.__dict__.setdefault("_shortest_paths", {})
     if key in memo:
         return memo[key]
-    memo[key] = result = _shortest_paths(problem, np.asarray(starts, float), np.asarray(targets, float))
+    memo[key] = result = _shortest_paths(problem, np.asarray(starts, float), np.asarray(targets, float), deadline)
     return result
 
 
@@ -151,26 +200,72 @@ def straight_lengths(problem: Problem, starts: np.ndarray, targets: np.ndarray) 
     return memo[key]
 
 
-def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray):
-    corners, dist_cc, pred_cc = _corner_graph(problem)
+def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, deadline: float | None = None):
+    """Dijkstra from every start over one sparse graph: the starts, the corners and
+    the targets, joined by clear segments (start-corner, corner-corner,
+    corner-target; a clear start-target segment is taken directly)."""
+    from scipy.sparse import bmat, coo_matrix, csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    corners, graph_cc = _corner_graph(problem, deadline)
     direct = straight_lengths(problem, starts, targets)
     if len(corners) == 0:
         return direct, lambda i, j: np.stack([starts[i], targets[j]])
+    m, c, n = len(starts), len(corners), len(targets)
+    if m * c * c <= 2_000_000 and _corner_radius(problem, corners) is None:
+        return _shortest_paths_dense(problem, starts, targets, corners, graph_cc, direct)
     # starts -> corners and corners -> targets in one clearance call
-    m, c = len(starts), len(corners)
-    a = np.concatenate([np.repeat(starts, c, axis=0), np.tile(corners, (len(targets), 1))])
+    si, sc = _near_pairs(problem, starts, corners)
+    tj, tc = _near_pairs(problem, targets, corners)
+    a = np.concatenate([starts[si], corners[tc]])
+    b = np.concatenate([corners[sc], targets[tj]])
+    ok = problem.env.segments_clear(a, b, problem.clearance)
+    ok_s, ok_t = ok[: len(si)], ok[len(si) :]
+    si, sc, tj, tc = si[ok_s], sc[ok_s], tj[ok_t], tc[ok_t]
+    dsc = np.linalg.norm(starts[si] - corners[sc], axis=1) + 1e-300
+    dct = np.linalg.norm(targets[tj] - corners[tc], axis=1) + 1e-300
+    # node order: starts (m), corners (c), targets (n); directed start -> corner -> target
+    s_to_c = csr_matrix((dsc, (si, sc)), shape=(m, c))
+    c_to_t = csr_matrix((dct, (tc, tj)), shape=(c, n))
+    g = bmat([[None, s_to_c, None], [None, graph_cc, c_to_t], [coo_matrix((n, m)), None, coo_matrix((n, n))]],
+             format="csr")
+    dist, pred = dijkstra(g, directed=True, indices=np.arange(m), return_predecessors=True)
+    length_via = dist[:, m + c :]
+    length = np.minimum(direct, length_via)
+
+    def path(i: int, j: int) -> np.ndarray:
+        if direct[i, j] <= length_via[i, j]:
+            return np.stack([starts[i], targets[j]])
+        chain = []
+        node = int(pred[i, m + c + j])
+        while node >= m:  # a corner
+            chain.append(node - m)
+            node = int(pred[i, node])
+        return np.vstack([starts[i], corners[chain[::-1]], targets[j]])
+
+    return length, path
+
+
+def _shortest_paths_dense(problem, starts, targets, corners, graph_cc, direct):
+    """:func:`_shortest_paths` for few corners: all corner pairs' shortest distances
+    at once, then start -> first corner -> ... -> last corner -> target minimised
+    with arrays (cheaper than a graph search at this size)."""
+    from scipy.sparse.csgraph import shortest_path
+
+    dist_cc, pred_cc = shortest_path(graph_cc, directed=False, return_predecessors=True)
+    m, c, n = len(starts), len(corners), len(targets)
+    a = np.concatenate([np.repeat(starts, c, axis=0), np.tile(corners, (n, 1))])
     b = np.concatenate([np.tile(corners, (m, 1)), np.repeat(targets, c, axis=0)])
     ok = problem.env.segments_clear(a, b, problem.clearance)
     vis_sc = ok[: m * c].reshape(m, c)
-    vis_ct = ok[m * c :].reshape(len(targets), c).T
+    vis_ct = ok[m * c :].reshape(n, c).T
     dsc = np.where(vis_sc, np.linalg.norm(starts[:, None] - corners[None], axis=2), np.inf)
     dct = np.where(vis_ct, np.linalg.norm(corners[:, None] - targets[None], axis=2), np.inf)
-    # start -> first corner -> ... -> last corner, minimised over the corners
     via_first = dsc[:, :, None] + dist_cc[None]  # (m, c, c): start, first, last
     first_of = np.argmin(via_first, axis=1)  # (m, c): best first corner per last corner
     to_last = np.take_along_axis(via_first, first_of[:, None, :], axis=1)[:, 0, :]  # (m, c)
-    through = to_last[:, :, None] + dct[None]  # (m, c, m)
-    last_of = np.argmin(through, axis=1)  # (m, m)
+    through = to_last[:, :, None] + dct[None]  # (m, c, n)
+    last_of = np.argmin(through, axis=1)  # (m, n)
     length_via = np.take_along_axis(through, last_of[:, None, :], axis=1)[:, 0, :]
     length = np.minimum(direct, length_via)
 

@@ -84,9 +84,18 @@ def narrow_passages(problem: Problem) -> list[tuple[np.ndarray, np.ndarray]]:
         keep = owner[i] != owner[j]
         i, j = i[keep], j[keep]
         d = segment_segment_distance(a[i], b[i], a[j], b[j])
-        for k in np.flatnonzero((d >= lo) & (d < hi)):
-            p, q, _ = _segment_pair(a[i[k]], b[i[k]], a[j[k]], b[j[k]])
-            found.append((p, q))
+        near = np.flatnonzero(d < hi)
+        # one passage per pair of owners, where they come closest (a pair closer
+        # than a robot needs anywhere has no passage)
+        best: dict[tuple[int, int], tuple[float, int]] = {}
+        for k in near[np.argsort(d[near], kind="stable")].tolist():
+            key = (int(owner[i[k]]), int(owner[j[k]]))
+            if key not in best:
+                best[key] = (float(d[k]), k)
+        for dist, k in sorted(best.values(), key=lambda x: x[1]):
+            if dist >= lo:
+                p, q, _ = _segment_pair(a[i[k]], b[i[k]], a[j[k]], b[j[k]])
+                found.append((p, q))
         for center, radius, _ in circles:
             d = point_segment_distance(center[None], a, b) - radius
             for k in np.flatnonzero((d >= lo) & (d < hi)):

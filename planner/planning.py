@@ -10,6 +10,10 @@ from scipy.optimize import linear_sum_assignment
 
 from .bounds import lower_bounds
 from .connect import sequenced_moves
+from .feasibility import feasibility
+from .freespace import free_roadmap_waypoints
+from .guide import Late
+from .lattice import lattice_waypoints
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
@@ -36,17 +40,34 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     problem.validate()
     t0 = time.perf_counter()
     deadline = t0 + params.time_limit
+    # A plan of one straight step needs no proof that a plan exists (and is cheap to find).
+    one_step = params.auto and _at_once(problem, problem.start, problem.target) is not None
+    proof = None if one_step else feasibility(problem)
+    if proof is not None:
+        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
+        stats.extra.update(feasible=False, infeasible_reason=proof.reason)
+        raise NoPlanFound(proof.reason, stats)
     memo: dict = {}
     same = _same_set(problem.start, problem.target)
-    direct = None if same else _direct(problem, params, memo)
+    direct = None if same else _direct(problem, params, memo, deadline, rng)
     if same:
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
                                      problem.max_speed, problem.max_accel)
-    elif direct is not None and direct.final(problem):
+    elif direct is not None and direct.best is None and time.perf_counter() > deadline:
+        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
+        stats.extra["feasible"] = None  # not proven either way
+        raise NoPlanFound(f"no plan within the time limit of {params.time_limit:g} s "
+                          f"(the direct tries used it up)", stats)
+    elif direct is not None and direct.best is None and problem.m >= ROADMAP_MAX_ROBOTS:
+        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
+        stats.extra["feasible"] = None  # not proven either way
+        raise NoPlanFound(f"no plan: the lattice and free-space stages failed, and with {problem.m} "
+                          f"robots the pebble-graph roadmap is not tried", stats)
+    elif direct is not None and (direct.final(problem) or time.perf_counter() > deadline):
         waypoints, sequential, _, label = direct.best
         if params.concurrent:
-            waypoints = shortcut(problem, waypoints)
+            waypoints = shortcut(problem, waypoints, deadline=deadline)
         result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                      problem.max_accel)
         stats = PlanStats(found=True, g=0, q=0, graphs=0, connections=direct.legs[label])
@@ -59,7 +80,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         def evaluate(roadmap, route):
             key = tuple(route)
             if key not in timed:
-                timed[key] = _timed(problem, params, retrieve(problem, roadmap, route), memo)
+                timed[key] = _timed(problem, params, retrieve(problem, roadmap, route), memo, deadline)
             return timed[key]
 
         incumbent = None if direct is None or direct.best is None else direct.best[2]
@@ -74,7 +95,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
                 best = (waypoints, sequential, makespan, route)
         waypoints, sequential, _, route = best
         if params.concurrent:
-            waypoints = shortcut(problem, waypoints)
+            waypoints = shortcut(problem, waypoints, deadline=deadline)
         result = Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
                                      problem.max_accel)
         stats.extra["sequential_steps"] = sequential
@@ -131,6 +152,19 @@ def _name_direct(stats: PlanStats, label: str) -> None:
         stats.extra["route"] = [0, 1]
 
 
+#: From this many robots on, auto mode routes the swarm through a lattice
+#: (:mod:`planner.lattice`) right after the one-step try: below it the
+#: structured stages find shorter plans in a few milliseconds.
+LATTICE_MIN_ROBOTS = 60
+
+#: From this many robots on, auto mode does not build the pebble-graph roadmap when its
+#: direct tries found nothing: its interference graphs grow with the square of the
+#: candidate pairs (gigabytes at 1000 robots) and it never connected such problems.
+ROADMAP_MAX_ROBOTS = 300
+
+#: From this many obstacles on, a plan of the free-space roadmap ends the search.
+CLUTTER = 10
+
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 
 
@@ -173,7 +207,8 @@ class _Direct:
         return not len(passage_points(problem)) or self.best[2] <= _GOOD_ENOUGH[-1] * lower_bounds(problem)[0]
 
 
-def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | None:
+def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float = float("inf"),
+            rng: np.random.Generator | None = None) -> _Direct | None:
     """Auto mode's tries, before any pebble graph is sampled (``None`` with fixed g and q).
 
     1. All robots at once, straight to their assigned targets, when that
@@ -204,9 +239,23 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | No
         if out.best[2] <= _GOOD_ENOUGH[1] * bound:
             out.accepted = True
             return out
+    if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
+        raw = lattice_waypoints(problem, deadline)
+        if raw is not None:
+            w = merge_steps(problem, _drop_idle(raw), deadline)
+            out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+            # the one-at-a-time stages rarely beat it with this many robots
+            out.accepted = True
+            return out
+    if len(problem.obstacles) >= CLUTTER:  # the stage that works among many obstacles, first
+        _free_space(problem, out, bound, deadline, rng)
+        if out.accepted:
+            return out
     for factor, stage in zip(_GOOD_ENOUGH, STAGES):
         if factor is not None and out.best is not None and out.best[2] <= factor * bound:
             out.accepted = True
+            return out
+        if time.perf_counter() > deadline:
             return out
         chain = stage_chain(problem, stage)
         if chain is None:  # a thinned placement: left to the roadmap
@@ -214,12 +263,33 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict) -> _Direct | No
         if not chain:  # nothing to add (no placement needs expanding)
             out.covered.add(stage)
             continue
-        raw = _chain_waypoints(problem, chain)
+        raw = _chain_waypoints(problem, chain, deadline)
         if raw is None:
             continue
         out.covered.add(stage)
-        out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo))
+        out.offer(stage, len(chain) - 1, _timed(problem, params, raw, memo, deadline))
+    if problem.obstacles and out.best is None:  # nothing yet: before the pebble-graph roadmap
+        _free_space(problem, out, bound, deadline, rng)
     return out
+
+
+def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, rng) -> None:
+    """Offer the free-space roadmap's plan (:mod:`planner.freespace`), a few tries."""
+    if "free-space roadmap" in out.legs:
+        return
+    raw = None
+    for _ in range(4):  # escapes are random: a stalled routing may pass on another try
+        if raw is not None or time.perf_counter() > deadline:
+            break
+        raw = free_roadmap_waypoints(problem, deadline, rng)
+    if raw is None:
+        out.legs.setdefault("free-space roadmap", 0)
+        return
+    w = merge_steps(problem, _drop_idle(raw), deadline)
+    span = _makespan(problem, w)
+    out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, span))
+    # Among many obstacles the pebble-graph roadmap costs much and rarely does better.
+    out.accepted = len(problem.obstacles) >= CLUTTER or span <= _GOOD_ENOUGH[-1] * bound
 
 
 def _at_once(problem: Problem, pos: np.ndarray, nxt: np.ndarray) -> np.ndarray | None:
@@ -238,7 +308,7 @@ def _at_once(problem: Problem, pos: np.ndarray, nxt: np.ndarray) -> np.ndarray |
     return memo[key]
 
 
-def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarray] | None:
+def _chain_waypoints(problem: Problem, chain: list[np.ndarray], deadline: float = float("inf")) -> list[np.ndarray] | None:
     """Raw waypoints from ``chain[0]`` (the start) through each whole placement in turn.
 
     Each leg is, in this order of preference: every robot at once,
@@ -253,13 +323,18 @@ def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarr
     raw = [pos]
     bends = (False, True) if problem.obstacles else (False,)
     for nxt in chain[1:]:
+        if time.perf_counter() > deadline:
+            return None
         end = _at_once(problem, pos, nxt)
         if end is not None:
             pos = end
             raw.append(pos)
             continue
         for bent in bends:
-            seq = sequenced_moves(problem, pos, np.asarray(nxt, float), bent, groups=True)
+            try:
+                seq = sequenced_moves(problem, pos, np.asarray(nxt, float), bent, groups=True, deadline=deadline)
+            except Late:
+                return None
             if seq is not None:
                 break
         else:
@@ -271,7 +346,8 @@ def _chain_waypoints(problem: Problem, chain: list[np.ndarray]) -> list[np.ndarr
     return raw
 
 
-def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None = None):
+def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None = None,
+           deadline: float | None = None):
     """Merge, cut, schedule and merge again: ``(waypoints, sequential steps, makespan)``.
 
     ``memo`` maps waypoints already timed (by their bytes) to the result.
@@ -284,17 +360,17 @@ def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None
     key = waypoints.tobytes()
     if memo is not None and key in memo:
         return memo[key]
-    result = _timed_fresh(problem, params, waypoints)
+    result = _timed_fresh(problem, params, waypoints, deadline)
     if memo is not None:
         memo[key] = result
     return result
 
 
-def _timed_fresh(problem: Problem, params: PlannerParams, waypoints: np.ndarray):
+def _timed_fresh(problem: Problem, params: PlannerParams, waypoints: np.ndarray, deadline: float | None = None):
     sequential = len(waypoints) - 1
-    waypoints = merge_moves(problem, waypoints)
+    waypoints = merge_moves(problem, waypoints, deadline)
     if params.concurrent:
-        waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints)))
+        waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints), deadline), deadline)
     return waypoints, sequential, _makespan(problem, waypoints)
 
 
@@ -319,6 +395,7 @@ def _drop_idle(waypoints: list[np.ndarray]) -> np.ndarray:
 
 def _fill_stats(stats: PlanStats, plan: Plan, clearance: float):
     stats.found = True
+    stats.extra["feasible"] = True
     stats.steps = plan.steps
     stats.makespan_s = plan.makespan
     stats.path_length = plan.path_length

@@ -33,6 +33,8 @@ in the same contract (straight moves, one shared time scaling per step).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from .geometry import closest_approach, point_segment_distance
@@ -50,7 +52,7 @@ def steps_of(waypoints: np.ndarray) -> list[np.ndarray]:
     return np.split(robot, np.searchsorted(step, np.arange(1, len(w) - 1)))
 
 
-def merge_moves(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
+def merge_moves(problem: Problem, waypoints: np.ndarray, deadline: float | None = None) -> np.ndarray:
     """Join consecutive single-robot moves of one robot when the direct move is clear.
 
     Greedy along each run of steps that move the same robot alone: from the
@@ -78,7 +80,7 @@ def merge_moves(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
         k = j + 1
     last_of = {}  # first step of a joined move -> its last step
     sep = problem.separation
-    while pending:
+    while pending and not _late(deadline):
         # step k0 extended to end at waypoint e (k0 + 2 <= e <= k1 + 1)
         cand = [(n, k0, e, r) for n, (k0, k1, r) in enumerate(pending) for e in range(k0 + 2, k1 + 2)]
         n_of, k_of, e_of, r_of = (np.array(c) for c in zip(*cand))
@@ -106,6 +108,11 @@ def merge_moves(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     return np.asarray(out)
 
 
+def _late(deadline: float | None) -> bool:
+    """Whether ``deadline`` (a ``time.perf_counter()`` value, or ``None``: never) has passed."""
+    return deadline is not None and time.perf_counter() > deadline
+
+
 def _any_by_layer(flags: np.ndarray, layer: np.ndarray, n_layers: int) -> np.ndarray:
     """For each layer, whether any flagged item belongs to it."""
     return np.bincount(layer[flags], minlength=n_layers)[:n_layers] > 0
@@ -115,10 +122,15 @@ _PAIRS_LIMIT = 40_000_000
 """Largest table of pairwise tests :func:`schedule` computes up front; larger plans are
 scheduled layer by layer (:func:`_schedule_by_layer`, the same answers)."""
 _CHUNK = 250_000  # pairwise tests per closest-approach call
+_DENSE = 1 << 18  # up to this many pairs the scheduler's table is computed whole
 
 
-def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
+def schedule(problem: Problem, waypoints: np.ndarray, deadline: float | None = None) -> np.ndarray:
     """Earliest-layer scheduling of the steps (see the module docstring).
+
+    Past ``deadline`` (a ``time.perf_counter()`` value) the steps not yet
+    placed each get a layer of their own, after the others (still valid:
+    that is the plan's own order).
 
     Every step is checked against all the layers it could join: its moves
     against each layer's moves (closest approach at a common parameter)
@@ -140,7 +152,7 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     if total == 0:  # nobody moves
         return w[:1].copy()
     if 2 * total * (2 * total + m) > _PAIRS_LIMIT:
-        return _schedule_by_layer(problem, w, steps)
+        return _schedule_by_layer(problem, w, steps, deadline)
     sep = problem.separation
     step_of = np.concatenate([np.full(len(r), k) for k, r in steps])
     robot_of = np.concatenate([r for _, r in steps])
@@ -151,16 +163,28 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     # is a zero-length move).  Same closed form and arguments as layer by layer.
     rows_a, rows_b = np.concatenate([a, b]), np.concatenate([b, b])
     cols_a, cols_b = np.concatenate([a, held]), np.concatenate([b, held])
-    mv, pos = [], []  # per row: bits of the close moves, bits of the close positions
-    chunk = max(1, _CHUNK // len(cols_a))  # rows per call, to bound the temporaries
-    for r0 in range(0, len(rows_a), chunk):
-        ra, rb = rows_a[r0 : r0 + chunk, None], rows_b[r0 : r0 + chunk, None]
-        close = closest_approach(ra, rb, cols_a[None], cols_b[None]) < sep
-        mv += _bit_rows(close[:, :total])
-        pos += _bit_rows(close[:, total:])
-    join_mv, pass_mv = mv[:total], mv[total:]
-    join_pos, pass_pos = pos[:total], pos[total:]
+    if len(rows_a) * len(cols_a) <= _DENSE:  # small: every pair at once
+        close = closest_approach(rows_a[:, None], rows_b[:, None], cols_a[None], cols_b[None]) < sep
+        mv, pos = _bit_rows(close[:, :total]), _bit_rows(close[:, total:])
+        return _layers(w, steps, m, total, mv[:total], mv[total:], pos[:total], pos[total:], robot_of, b, deadline)
+    # Only pairs whose swept boxes can meet are tested: a KD-tree of the
+    # columns' midpoints, searched around each row's midpoint.
+    ri, ci = _near_pairs(rows_a, rows_b, cols_a, cols_b, sep)
+    if _late(deadline):
+        return w  # the plan's own order
+    close = np.zeros(len(ri), bool)
+    for c0 in range(0, len(ri), _CHUNK):
+        sl = slice(c0, c0 + _CHUNK)
+        close[sl] = closest_approach(rows_a[ri[sl]], rows_b[ri[sl]], cols_a[ci[sl]], cols_b[ci[sl]]) < sep
+    ri, ci = ri[close], ci[close]
+    is_mv = ci < total
+    mv = _bit_sets(ri[is_mv], ci[is_mv], len(rows_a))  # per row: bits of the close moves
+    pos = _bit_sets(ri[~is_mv], ci[~is_mv] - total, len(rows_a))  # ... and of the close positions
+    return _layers(w, steps, m, total, mv[:total], mv[total:], pos[:total], pos[total:], robot_of, b, deadline)
 
+
+def _layers(w, steps, m, total, join_mv, pass_mv, join_pos, pass_pos, robot_of, b, deadline):
+    """:func:`schedule`'s layering from its tables of close pairs (bit sets per move)."""
     cur = list(range(m))  # each robot's position id
     all_held = (1 << m) - 1  # bits of every robot's position id
     last = [-1] * m  # layer of each robot's latest move
@@ -169,13 +193,15 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     start_held: list[int] = []  # per layer: bits of every robot's position at its start
     movers_held: list[int] = []  # per layer: bits of its moving robots' positions at its start
     i = 0
-    for _, robots in steps:
+    for n_step, (_, robots) in enumerate(steps):
         rs = robots.tolist()
         ids = range(i, i + len(rs))  # this step's moves: consecutive ids
         bits = ((1 << len(rs)) - 1) << i
         new = bits << m  # the position ids of their ends
         i += len(rs)
         lo = max(last[r] for r in rs) + 1  # each robot keeps the order of its own moves
+        if n_step % 32 == 31 and _late(deadline):
+            lo = len(moves_in)  # out of time: a layer of its own
         ours = 0
         for r in rs:
             ours |= 1 << cur[r]
@@ -220,13 +246,36 @@ def schedule(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
     return np.asarray(out)
 
 
+def _near_pairs(ra: np.ndarray, rb: np.ndarray, ca: np.ndarray, cb: np.ndarray, sep: float):
+    """``(row, column)`` pairs of moves ``ra -> rb`` and ``ca -> cb`` that can come closer than
+    ``sep``: their midpoints are within half of each one's length plus ``sep``."""
+    from scipy.spatial import cKDTree
+
+    half_c = 0.5 * np.linalg.norm(cb - ca, axis=1)
+    mid_r = 0.5 * (ra + rb)
+    reach = 0.5 * np.linalg.norm(rb - ra, axis=1) + float(half_c.max(initial=0.0)) + sep
+    lists = cKDTree(0.5 * (ca + cb)).query_ball_point(mid_r, reach, return_sorted=False)
+    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    rows = np.repeat(np.arange(len(ra)), counts)
+    cols = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
+    return rows, cols
+
+
+def _bit_sets(rows: np.ndarray, cols: np.ndarray, n: int) -> list[int]:
+    """Per row ``0..n-1``, the Python integer with bit ``c`` set for each of its columns."""
+    out = [0] * n
+    for r, c in zip(rows.tolist(), cols.tolist()):
+        out[r] |= 1 << c
+    return out
+
+
 def _bit_rows(mask: np.ndarray) -> list[int]:
     """Each row of a boolean matrix as a Python integer (bit ``j`` = column ``j``)."""
     packed = np.packbits(mask, axis=1, bitorder="little")
     return [int.from_bytes(row.tobytes(), "little") for row in packed]
 
 
-def _schedule_by_layer(problem: Problem, w: np.ndarray, steps) -> np.ndarray:
+def _schedule_by_layer(problem: Problem, w: np.ndarray, steps, deadline: float | None = None) -> np.ndarray:
     """:func:`schedule` for plans too long for its table of pairwise tests.
 
     ``steps`` are the plan's non-empty steps as ``(index, moving robots)``.
@@ -247,11 +296,13 @@ def _schedule_by_layer(problem: Problem, w: np.ndarray, steps) -> np.ndarray:
     n_layers = 0
     pos = w[0].copy()
     last_move = np.full(m, -1)
-    for k, robots in steps:
+    for n_step, (k, robots) in enumerate(steps):
         a, b = w[k][robots], w[k + 1][robots]
         floor = int(last_move[robots].max())  # cannot go at or before this layer
         best = None
         lo = floor + 1
+        if n_step % 16 == 15 and _late(deadline):
+            lo = n_layers  # out of time: a layer of its own
         if lo < n_layers:
             L = n_layers - lo  # candidate layers lo .. n_layers - 1
             sel = mv_layer[:n_mv] >= lo
@@ -368,12 +419,14 @@ def _try_shortcut(problem: Problem, w: np.ndarray, r: int, j1: int, j2: int, tab
     return True
 
 
-def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.ndarray:
+def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3, deadline: float | None = None) -> np.ndarray:
     """Straighten detours robot by robot (see :func:`_try_shortcut`).
 
     For each robot the whole plan is tried first, then its halves, quarters
     and so on down to windows of two steps; a few passes run until nothing
-    improves.  Steps in which nobody moves any more are dropped.
+    improves or ``deadline`` passes (every accepted change is checked, so
+    the plan is valid whenever it stops).  Steps in which nobody moves any
+    more are dropped.
     """
     w = np.array(waypoints, float)
     if len(w) <= 2:
@@ -381,6 +434,8 @@ def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.nda
     for _ in range(passes):
         improved = False
         for r in range(w.shape[1]):
+            if _late(deadline):
+                break
             tables = None  # of the current w, for robot r
             stack = [(0, len(w) - 1)]
             while stack:
@@ -396,7 +451,7 @@ def shortcut(problem: Problem, waypoints: np.ndarray, passes: int = 3) -> np.nda
                 mid = (j1 + j2) // 2
                 stack.append((mid, j2))
                 stack.append((j1, mid))
-        if not improved:
+        if not improved or _late(deadline):
             break
     keep = [0] + [k + 1 for k in range(len(w) - 1) if np.any(w[k + 1] != w[k])]
     return w[keep]
@@ -408,11 +463,12 @@ def step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(steps_clear(problem, np.asarray(a)[None], np.asarray(b)[None])[0])
 
 
-def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float | None = None) -> np.ndarray:
     """:func:`step_clear` of ``K`` steps at once: step ``k`` moves every robot ``a[k] -> b[k]``.
 
     ``a`` and ``b`` are ``(K, m, 2)``; the same exact tests, in one
-    clearance call and chunked closest-approach calls.
+    clearance call and chunked closest-approach calls.  Steps not tested
+    by ``deadline`` count as not clear.
     """
     n_steps, m = a.shape[:2]
     kk, rr = np.nonzero(np.any(a != b, axis=2))  # every moving robot of every step
@@ -424,6 +480,9 @@ def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if m > 1:
         chunk = max(1, _CHUNK // m)
         for c0 in range(0, len(kk), chunk):
+            if _late(deadline):
+                bad[kk[c0:]] = True
+                break
             sl = slice(c0, c0 + chunk)
             d = closest_approach(sa[sl, None], sb[sl, None], a[kk[sl]], b[kk[sl]])  # (rows, m)
             d[np.arange(len(d)), rr[sl]] = np.inf  # a robot and itself
@@ -431,21 +490,25 @@ def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return ~bad
 
 
-def merge_steps(problem: Problem, waypoints: np.ndarray) -> np.ndarray:
+def merge_steps(problem: Problem, waypoints: np.ndarray, deadline: float | None = None) -> np.ndarray:
     """Greedily join consecutive steps into straight ones where that is clear.
 
     Every join of two consecutive original steps is tested up front
     (:func:`steps_clear`); a join onto a step that is itself already joined
-    is tested when the greedy pass reaches it.
+    is tested when the greedy pass reaches it.  Past ``deadline`` nothing
+    more is joined.
     """
     w = np.asarray(waypoints, float)
     if len(w) <= 2:
         return w
-    two = steps_clear(problem, w[:-2], w[2:])  # two[k]: w[k] -> w[k + 2] straight is clear
+    two = steps_clear(problem, w[:-2], w[2:], deadline)  # two[k]: w[k] -> w[k + 2] straight is clear
     out = [w[0], w[1]]
     first = 0  # index in w of out[-2]
     for i in range(2, len(w)):
-        clear = two[first] if i - first == 2 else step_clear(problem, w[first], w[i])
+        if i - first == 2:
+            clear = two[first]
+        else:
+            clear = not _late(deadline) and step_clear(problem, w[first], w[i])
         if clear:
             out[-1] = w[i]  # the last step now runs straight to ``w[i]``
         else:

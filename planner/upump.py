@@ -320,6 +320,10 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
     own = np.arange(m)
     rm = Roadmap(problem)
     rm.add_graph(pump(problem, problem.start, extra, rng), own)
+    if time.perf_counter() > deadline and incumbent is None:
+        stats = _finish(stats, rm, 0, 0, t0)
+        stats.extra["feasible"] = None
+        raise NoPlanFound("no plan within the time limit", stats)
     rm.add_graph(pump(problem, problem.target, extra, rng), own)
     source = (0, rm.graphs[0].signature(own))
     goal = (1, rm.graphs[1].signature(own))
@@ -405,6 +409,7 @@ def build_roadmap(problem: Problem, params: PlannerParams, rng: np.random.Genera
 
     stats = _finish(stats, rm, g_used, q_used, t0)
     if not connected() and incumbent is None:
+        stats.extra["feasible"] = None  # not proven either way
         raise NoPlanFound(
             f"start and target not connected after {g_used} pebble graphs and "
             f"{rm.attempts} connection attempts",

@@ -150,7 +150,8 @@ def _cmd_plan(args) -> int:
                                      labels=[t.describe() for t in scenario.legs])
     except NoPlanFound as exc:
         _print_stats(exc.stats, problem.margin, auto=params.auto)
-        print(f"no plan: {exc}", file=sys.stderr)
+        proven = exc.stats.extra.get("feasible") is False  # the message says "no plan exists: ..."
+        print(str(exc) if proven else f"no plan: {exc}", file=sys.stderr)
         return EXIT_FAIL
     _print_stats(stats, problem.margin, auto=params.auto)
     with atomic_path(out) as tmp:

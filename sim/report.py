@@ -58,6 +58,8 @@ def verdict(report: dict) -> tuple[bool, str]:
     ok = bool(report.get("ok"))
     if not plan.get("found"):
         why = plan.get("error") or "no plan within the limits"
+        if plan.get("feasible") is False:
+            return False, f"FAILED: {why}"
         return False, f"FAILED: no plan ({why})"
     reasons = []
     if plan.get("valid") is False:

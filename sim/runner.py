@@ -69,6 +69,10 @@ def plan_summary(stats: PlanStats, *, valid: bool | None = None, auto: bool = Fa
         out["g"] = out["q"] = "auto"
         if d.get("direct"):
             out["direct"] = d["direct"]
+    if "feasible" in d:  # True: a plan exists (found); False: proven impossible; None: not known
+        out["feasible"] = d["feasible"]
+        if d.get("infeasible_reason"):
+            out["infeasible_reason"] = d["infeasible_reason"]
     if valid is not None:
         out["valid"] = valid
     if "legs" in stats.extra:
@@ -140,7 +144,10 @@ def run_scenario(
                 report["sim"] = None
                 report["media"] = []
                 report["ok"] = False
-                say(f"  no plan in {exc.stats.planning_time_s:.2f} s: {exc}")
+                if exc.stats.extra.get("feasible") is False:
+                    say(f"  {exc} (proven in {exc.stats.planning_time_s:.3f} s)")
+                else:
+                    say(f"  no plan in {exc.stats.planning_time_s:.2f} s: {exc}")
                 report["page"] = str(outs.final(page_name))
                 run_page(outs.path(page_name), report, problem)
                 _write_report(outs.path(json_name), report)

@@ -181,3 +181,13 @@ def test_fit_exponent_recovers_a_power_law():
     assert scaling.fit_exponent(rows) == pytest.approx(1.5)
     rows.append({"m": 200, "median time [s]": math.nan})  # a size with no solved run is left out
     assert scaling.fit_exponent(rows, min_m=20) == pytest.approx(1.5)
+
+
+def test_frontier_proves_the_pocket_and_plans_a_door():
+    from bench import frontier
+
+    rows = frontier.main(["--cases", "unsolvable-pocket", "door-4.4", "--seeds", "1", "--time-limit", "20"])
+    pocket, door = (next(r for r in rows if r["case"] == n) for n in ("unsolvable-pocket", "door-4.4"))
+    assert pocket["proven unsolvable"] == 1 and pocket["planned"] == 0 and pocket["proof max [s]"] < 1.0
+    assert door["solved"] == "1/1" and door["makespan / bound (median)"] >= 1.0
+    assert "no plan exists: the component around" in pocket["records"][0]["reason"]

@@ -70,3 +70,51 @@ def test_segments_at_exactly_the_clearance_agree_with_the_exact_kernel():
         assert np.array_equal(fast, env.segment_clearance(a, b) >= clearance)
     assert env.segments_clear(a[:3], b[:3], 1.0).all()  # each exactly 1.0 away
     assert not env.segments_clear(a[3:], b[3:], 1.0).any()  # 0.5 above the top; across the polygon
+
+
+def _cluttered(seed: int) -> Problem:
+    rng = np.random.default_rng(seed)
+    obs = []
+    for _ in range(40):
+        d = rng.uniform(1, 6)
+        c = rng.uniform(0, 40, size=2)
+        ang = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 8))))
+        obs.append(Polygon(c + d / 2 * np.stack([np.cos(ang), np.sin(ang)], axis=1)))
+    obs.append(Polygon(np.array([[2, 2], [30, 2], [30, 3], [2, 3]])))  # one long thin obstacle
+    for _ in range(5):
+        obs.append(Circle(tuple(rng.uniform(0, 40, size=2)), float(rng.uniform(0.5, 3))))
+    return Problem(40, 40, tuple(obs), 1.0, 0.1, np.zeros((0, 2)), np.zeros((0, 2)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31), st.sampled_from([0.0, 0.3, 1.1, 2.5]))
+def test_indexed_kernels_match_the_dense_ones_in_clutter(seed, clearance):
+    """Many obstacles: the indexed boolean tests give the exact kernels' answers, for
+    short and long segments, points and points on obstacle corners and box sides."""
+    import planner.geometry as geometry
+    from planner.geometry import points_in_polygon
+
+    geometry._DENSE_PAIRS, saved = 0, geometry._DENSE_PAIRS  # always through the index
+    try:
+        _indexed_vs_dense(seed, clearance)
+    finally:
+        geometry._DENSE_PAIRS = saved
+
+
+def _indexed_vs_dense(seed, clearance):
+    from planner.geometry import points_in_polygon
+
+    rng = np.random.default_rng(seed)
+    p = _cluttered(seed % 7)
+    env = p.env
+    a = rng.uniform(-1, 41, size=(400, 2))
+    b = a + rng.normal(0, 1, size=(400, 1)) * rng.choice([0.5, 4.0, 30.0], size=(400, 1)) * rng.normal(0, 1, (400, 2))
+    assert np.array_equal(env.segments_clear(a, b, clearance), env.segment_clearance(a, b) >= clearance)
+    corners = np.concatenate(env.polygons)
+    boxes = env.obstacle_boxes
+    on_sides = np.stack([boxes[:, 0], rng.uniform(boxes[:, 1], boxes[:, 3])], axis=1)
+    pts = np.vstack([a, corners, on_sides])
+    assert np.array_equal(env.points_clear(pts, clearance), env.point_clearance(pts) >= clearance)
+    inside = env._inside(pts)
+    dense = np.stack([points_in_polygon(pts, poly) for poly in env.polygons], axis=1)
+    assert np.array_equal(inside, dense)

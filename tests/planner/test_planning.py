@@ -90,7 +90,20 @@ def _walled_in() -> Problem:
     return Problem(40, 40, box, 1.0, 0.1, start, target)
 
 
-def test_impossible_problem_ends_within_the_time_limit():
+def test_impossible_problem_is_proven_at_once():
+    problem = _walled_in()
+    t0 = time.perf_counter()
+    with pytest.raises(NoPlanFound) as info:
+        plan(problem, PlannerParams(time_limit=30), np.random.default_rng(0))
+    assert time.perf_counter() - t0 < 1.0
+    assert str(info.value).startswith("no plan exists: the component around (10, 10) holds 1 start and 0 targets")
+    assert info.value.stats.extra["feasible"] is False and info.value.stats.graphs == 0
+
+
+def test_impossible_problem_ends_within_the_time_limit(monkeypatch):
+    import planner.planning as planning
+
+    monkeypatch.setattr(planning, "feasibility", lambda problem: None)  # the search alone
     problem = _walled_in()
     t0 = time.perf_counter()
     with pytest.raises(NoPlanFound) as info:
@@ -101,7 +114,10 @@ def test_impossible_problem_ends_within_the_time_limit():
     assert info.value.stats.graphs > 0
 
 
-def test_fixed_parameters_fail_fast_when_too_small():
+def test_fixed_parameters_fail_fast_when_too_small(monkeypatch):
+    import planner.planning as planning
+
+    monkeypatch.setattr(planning, "feasibility", lambda problem: None)  # the search alone
     problem = _walled_in()
     with pytest.raises(NoPlanFound) as info:
         plan(problem, PlannerParams(g=1, q=5, time_limit=30), np.random.default_rng(0))

@@ -47,7 +47,13 @@ def test_concurrent_plan_is_valid_and_never_longer(seed, m):
     for raw in routes:
         w = split_moves(problem, _drop_idle(raw))
         steps = [(k, r) for k, r in enumerate(steps_of(w)) if len(r)]
-        assert np.array_equal(schedule(problem, w), sched._schedule_by_layer(problem, w, steps))
+        layered = sched._schedule_by_layer(problem, w, steps)
+        assert np.array_equal(schedule(problem, w), layered)
+        dense, sched._DENSE = sched._DENSE, 0  # the indexed table of pairs whose swept boxes meet
+        try:
+            assert np.array_equal(schedule(problem, w), layered)
+        finally:
+            sched._DENSE = dense
         sequential = _timed_plan(problem, _drop_idle(raw))
         check_plan(problem, sequential)
         waypoints, _, makespan = _timed(problem, PlannerParams(), raw)

@@ -315,12 +315,14 @@ def test_no_plan_report_has_ok_and_run_says_where_it_wrote_it(tmp_path):
     assert r.returncode == 1, r.stdout + r.stderr
     report = json.loads((tmp_path / "out" / "split.json").read_text())
     assert report["ok"] is False and report["plan"]["found"] is False
-    assert report["plan"]["g"] == "auto" and report["plan"]["graphs"] > 0
+    # the wall splits the room: proven impossible before any sampling
+    assert report["plan"]["g"] == "auto" and report["plan"]["graphs"] == 0
+    assert report["plan"]["feasible"] is False and "2 starts and 0 targets" in report["plan"]["infeasible_reason"]
     assert f"wrote {tmp_path / 'out' / 'split.json'}" in r.stdout
     assert f"wrote {tmp_path / 'out' / 'split.html'}" in r.stdout
-    assert "no plan in 0." in r.stdout
+    assert "no plan exists: " in r.stdout and "(proven in 0." in r.stdout
     doc = _Page((tmp_path / "out" / "split.html").read_text(encoding="utf-8"))
-    assert "FAILED: no plan" in doc.all_text and "scenario" in doc.ids
+    assert "FAILED: no plan exists" in doc.all_text and "scenario" in doc.ids
 
 
 def test_run_page_uses_the_physics_series_when_there_are_some(tmp_path):

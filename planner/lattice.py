@@ -1,0 +1,487 @@
+"""Many robots at once: snap onto a square lattice, route with goal swapping, snap off.
+
+For hundreds of robots the structured stages move robots one at a time
+along dependency orders, and the plans get long.  This stage keeps every
+robot moving:
+
+1. **Lattice.**  A square lattice of spacing ``a >= sqrt(2) * separation``
+   over the workspace; its vertices are the clear points, its edges the
+   clear segments between 4-neighbours (both exact).  Robots on distinct
+   vertices that each stay or move to a 4-neighbour, with no two swapping
+   vertices, keep the separation at every common time parameter: the
+   relative position of two robots moves on a segment between two
+   non-zero integer vectors (times ``a``) whose difference is at most two
+   unit steps, which stays at least ``a / sqrt(2)`` from the origin.  So a
+   lattice step needs no pairwise test.
+2. **Snapping.**  The start placement is assigned to distinct lattice
+   vertices (a minimum sum of squared distances over each robot's nearest
+   vertices reached by a clear straight move), and the robots move there
+   in *rounds*: each round is one step in which a subset moves at once,
+   the largest found greedily whose moves keep the separation from each
+   other and from every robot that waits (exact closest approaches over
+   the pairs whose swept boxes meet).  A formation spaced a little over
+   the separation spreads onto a lattice of spacing ``a`` in one round
+   when ``1 / d_s^2 + 1 / a^2 <= 1 / d^2`` (``d`` the separation,
+   ``d_s`` the formation's spacing): the minimum-sum-of-squares
+   assignment's straight moves then keep ``d`` (the CAPT argument of
+   Turpin, Michael and Kumar 2014, with unequal spacings).  The target
+   placement is snapped the same way and the result is played backwards.
+3. **Routing.**  Between the two sets of lattice vertices, TSWAP (Okumura
+   and Defago, "Solving simultaneous target assignment and path planning
+   efficiently with time-independent execution", AIJ 2023): targets are
+   assigned (minimum sum of squared lattice distances), every robot steps
+   towards its target along the lattice distance field each time step
+   when the next vertex is free, a robot blocked by one resting on its
+   own target swaps targets with it, and a cycle of robots each waiting
+   for the next rotates its targets.  Robots move into a vertex vacated in
+   the same step (following), which the spacing makes safe.  On a
+   connected lattice every robot reaches a target.
+
+Every step this stage writes is exact by construction or by test; the
+plan it feeds is still checked by the exact validator.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .geometry import closest_approach
+from .problem import Problem
+
+__all__ = ["Lattice", "build_lattice", "lattice_spacing", "lattice_waypoints", "snap", "tswap"]
+
+_SLACK = 1.0 + 1e-6  # spacing over sqrt(2) * separation
+_MAX_VERTICES = 60_000
+_FIELD_ENTRIES = 10_000_000  # robots x vertices in the distance fields
+
+
+@dataclass(frozen=True, eq=False)
+class Lattice:
+    """Clear lattice points ``points (V, 2)``, their 4-neighbours ``nbr (V, 4)``
+    (-1 where there is none or the edge is blocked), the spacing and the
+    connected component of every vertex."""
+
+    points: np.ndarray
+    nbr: np.ndarray
+    spacing: float
+    component: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.points)
+
+
+def lattice_spacing(problem: Problem) -> float:
+    """``sqrt(2) * separation`` (plus a hair), larger when the lattice would be too big."""
+    a = math.sqrt(2.0) * problem.separation * _SLACK
+    cap = min(_MAX_VERTICES, _FIELD_ENTRIES // max(problem.m, 1))
+    return max(a, math.sqrt(problem.width * problem.height / cap))
+
+
+def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] = (0.0, 0.0)) -> Lattice:
+    """The lattice of clear points and clear 4-neighbour edges (both exact); ``shift``
+    moves it by that fraction of the spacing."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    c = problem.clearance
+    nx = int(math.floor((problem.width - 2 * c) / spacing - shift[0])) + 1
+    ny = int(math.floor((problem.height - 2 * c) / spacing - shift[1])) + 1
+    # centred between the walls' margins, then shifted
+    ox = c + 0.5 * (problem.width - 2 * c - (nx - 1 + shift[0]) * spacing) + shift[0] * spacing
+    oy = c + 0.5 * (problem.height - 2 * c - (ny - 1 + shift[1]) * spacing) + shift[1] * spacing
+    gx, gy = np.meshgrid(ox + spacing * np.arange(nx), oy + spacing * np.arange(ny), indexing="ij")
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    ok = problem.env.points_clear(pts, c)
+    vid = np.full(nx * ny, -1)
+    vid[ok] = np.arange(int(ok.sum()))
+    vid = vid.reshape(nx, ny)
+    pts = pts[ok]
+    nbr = np.full((len(pts), 4), -1)
+    rows, cols = [], []
+    for k, (dx, dy) in enumerate(((1, 0), (0, 1))):
+        a = vid[: nx - dx, : ny - dy].ravel()
+        b = vid[dx:, dy:].ravel()
+        both = (a >= 0) & (b >= 0)
+        a, b = a[both], b[both]
+        clear = problem.env.segments_clear(pts[a], pts[b], c)
+        a, b = a[clear], b[clear]
+        nbr[a, k] = b  # right / up
+        nbr[b, k + 2] = a  # left / down
+        rows.append(a)
+        cols.append(b)
+    r, cc = np.concatenate(rows), np.concatenate(cols)
+    g = coo_matrix((np.ones(len(r)), (r, cc)), shape=(len(pts), len(pts)))
+    _, comp = connected_components(g, directed=False)
+    return Lattice(pts, nbr, float(spacing), comp)
+
+
+# ----------------------------------------------------------------------------
+# snapping
+
+
+def _near_segments(problem: Problem, a: np.ndarray, b: np.ndarray, owner: np.ndarray,
+                   pos: np.ndarray, tree: cKDTree, ids: np.ndarray | None = None) -> np.ndarray:
+    """For each segment ``a -> b`` of robot ``owner``: whether another robot's position in
+    ``pos`` lies closer than the separation to it (exact, over the KD-tree's candidates)."""
+    from .geometry import point_segment_distance
+
+    sep = problem.separation
+    mid = 0.5 * (a + b)
+    half = 0.5 * np.linalg.norm(b - a, axis=1)
+    lists = tree.query_ball_point(mid, half + sep, return_sorted=False)
+    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    out = np.zeros(len(a), bool)
+    if counts.sum() == 0:
+        return out
+    seg = np.repeat(np.arange(len(a)), counts)
+    who = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
+    keep = (who if ids is None else ids[who]) != owner[seg]
+    seg, who = seg[keep], who[keep]
+    d = point_segment_distance(pos[who], a[seg], b[seg])
+    out[seg[d < sep]] = True
+    return out
+
+
+def _assign(problem: Problem, lat: Lattice, pos: np.ndarray, robots: np.ndarray, taken: np.ndarray,
+            hard: np.ndarray | None = None, k: int = 16) -> np.ndarray | None:
+    """Distinct free lattice vertices for ``robots`` (rows of ``pos``): minimum sum of squared
+    distances over each robot's ``k`` nearest vertices that are not ``taken`` and are
+    reached by a clear straight move.  A move passing closer than the separation to
+    another robot's position is charged a large penalty, and excluded where that
+    robot is marked in ``hard``."""
+    n = len(robots)
+    if n == 0:
+        return np.zeros(0, int)
+    k = min(k, lat.n)
+    d, j = cKDTree(lat.points).query(pos[robots], k=k)
+    d, j = np.asarray(d).reshape(n, k), np.asarray(j).reshape(n, k)
+    rows = np.repeat(np.arange(n), k)
+    cols = j.ravel()
+    a = np.repeat(pos[robots], k, axis=0)
+    b = lat.points[cols]
+    ok = ~taken[cols]
+    ok[ok] = problem.env.segments_clear(a[ok], b[ok], problem.clearance)
+    blocked = np.zeros(len(cols), bool)
+    blocked[ok] = _near_segments(problem, a[ok], b[ok], np.repeat(robots, k)[ok], pos, cKDTree(pos))
+    if hard is not None and hard.any():
+        firm = np.zeros(len(cols), bool)
+        idx = np.flatnonzero(ok)
+        firm[idx] = _near_segments(problem, a[idx], b[idx], np.repeat(robots, k)[idx], pos[hard],
+                                   cKDTree(pos[hard]), np.flatnonzero(hard))
+        ok &= ~firm
+    # a zero weight would read as no edge; a blocked move costs as much as one a few cells longer
+    # (a huge penalty makes the sparse assignment solver crawl)
+    w = d.ravel() ** 2 + 1e-9 + np.where(blocked, 16 * lat.spacing**2, 0.0)
+    # Dense over the candidate vertices only (the sparse solver can crawl when the
+    # candidates barely hold a full matching); absent pairs cost a prohibitive amount.
+    from scipy.optimize import linear_sum_assignment
+
+    used, col_of = np.unique(cols[ok], return_inverse=True)
+    if len(used) < n:
+        return None
+    big = 1e18
+    cost = np.full((n, len(used)), big)
+    cost[rows[ok], col_of] = w[ok]
+    r, c = linear_sum_assignment(cost)
+    if (cost[r, c] >= big).any():
+        return None  # no full matching among the candidates
+    out = np.empty(n, int)
+    out[r] = used[c]
+    return out
+
+
+def _conflicts(problem: Problem, a: np.ndarray, b: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """``(P, 2)`` pairs of robots, at least one moving, that come closer than the
+    separation when every robot goes ``a -> b`` at once (exact, over the pairs
+    whose swept boxes can meet)."""
+    sep = problem.separation
+    mid = 0.5 * (a + b)
+    half = 0.5 * np.linalg.norm(b - a, axis=1)
+    reach = 2 * float(half.max(initial=0.0)) + sep
+    pairs = cKDTree(mid).query_pairs(reach, output_type="ndarray")
+    if len(pairs) == 0:
+        return pairs.reshape(0, 2)
+    i, j = pairs[:, 0], pairs[:, 1]
+    keep = moving[i] | moving[j]
+    i, j = i[keep], j[keep]
+    close = closest_approach(a[i], b[i], a[j], b[j]) < sep
+    return np.stack([i[close], j[close]], axis=1)
+
+
+def _round(problem: Problem, pos: np.ndarray, dest: np.ndarray, todo: np.ndarray) -> np.ndarray:
+    """The robots that move in one round: all of ``todo`` at first; while some pair
+    conflicts, a mover conflicting with a waiting robot waits, else the mover of a
+    conflicting pair with more conflicts waits."""
+    movers = todo.copy()
+    while movers.any():
+        b = np.where(movers[:, None], dest, pos)
+        bad = _conflicts(problem, pos, b, movers)
+        if len(bad) == 0:
+            break
+        both = movers[bad[:, 0]] & movers[bad[:, 1]]
+        lone = np.concatenate([bad[~both & movers[bad[:, 0]], 0], bad[~both & movers[bad[:, 1]], 1]])
+        movers[lone] = False
+        if len(lone) == 0:
+            count = np.bincount(bad[both].ravel(), minlength=len(pos))
+            for i, j in bad[both]:
+                if movers[i] and movers[j]:
+                    movers[i if (count[i], i) > (count[j], j) else j] = False
+    return movers
+
+
+def snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float,
+         max_rounds: int = 400) -> tuple[list[np.ndarray], np.ndarray] | None:
+    """Steps moving the robots of ``placement`` onto distinct lattice vertices, in rounds.
+
+    Returns ``(steps, vertex of each robot)``.  Each round is one step moving
+    the robots :func:`_round` lets go at once (exact).  When a round can move
+    nobody, the robots still to move get new vertices whose straight moves pass
+    no other robot where it stands, so that the next round moves some.
+    ``None`` when no such vertices exist or the deadline passes.
+    """
+    m = len(placement)
+    pos = np.array(placement, float)
+    everyone = np.arange(m)
+    vert = None
+    for k in (16, 48, 144):  # more candidates where the lattice is coarse next to the formation
+        if time.perf_counter() > deadline:
+            return None
+        vert = _assign(problem, lat, pos, everyone, np.zeros(lat.n, bool), k=k)
+        if vert is not None:
+            break
+    if vert is None:
+        return None
+    steps = []
+    stuck = 0
+    for _ in range(max_rounds):
+        dest = lat.points[vert]
+        todo = np.any(pos != dest, axis=1)
+        if not todo.any():
+            return steps, vert
+        if time.perf_counter() > deadline:
+            return None
+        movers = _round(problem, pos, dest, todo)
+        if movers.any():
+            pos = np.where(movers[:, None], dest, pos)
+            steps.append(pos.copy())
+            stuck = 0
+            continue
+        stuck += 1
+        if stuck > 3:
+            return None
+        left = np.flatnonzero(todo)
+        taken = np.zeros(lat.n, bool)
+        taken[vert[~todo]] = True
+        new = _assign(problem, lat, pos, left, taken, hard=~todo, k=48)
+        if new is None:
+            return None
+        vert = vert.copy()
+        vert[left] = new
+    return None
+
+
+# ----------------------------------------------------------------------------
+# routing (TSWAP)
+
+
+def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | None:
+    """``(len(sources), V)`` lattice distances (steps) from each source; -1 unreachable."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import shortest_path
+
+    v = np.repeat(np.arange(lat.n), 4)
+    w = lat.nbr.ravel()
+    ok = w >= 0
+    g = coo_matrix((np.ones(int(ok.sum())), (v[ok], w[ok])), shape=(lat.n, lat.n)).tocsr()
+    dtype = np.int16 if lat.n < 30_000 else np.int32
+    out = np.empty((len(sources), lat.n), dtype)
+    chunk = max(1, 4_000_000 // max(lat.n, 1))
+    for s in range(0, len(sources), chunk):
+        if time.perf_counter() > deadline:
+            return None
+        d = shortest_path(g, method="D", directed=False, unweighted=True, indices=sources[s : s + chunk])
+        d[~np.isfinite(d)] = -1
+        out[s : s + chunk] = d
+    return out
+
+
+def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float,
+          max_steps: int | None = None) -> list[np.ndarray] | None:
+    """Time steps (vertex of every robot after each) from ``start_v`` to the set ``goal_v``.
+
+    TSWAP (see the module docstring), synchronous: per time step, first
+    target swaps (a robot whose next vertex holds a robot resting on its
+    own target takes that target, and gives its own) and rotations of
+    targets along waiting cycles, then every robot not on its target moves
+    to its next vertex when that is free at that moment.  ``None`` when
+    the deadline or the step cap comes first, or a target is unreachable.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    m = len(start_v)
+    goals = np.asarray(goal_v, int)
+    field = _fields(lat, goals, deadline)
+    if field is None:
+        return None
+    cost = field[:, start_v].T.astype(float)  # (robot, goal)
+    if (cost < 0).any():
+        # robots and targets in different lattice components: only matching counts can work
+        if np.any(np.bincount(lat.component[start_v], minlength=lat.n)
+                  != np.bincount(lat.component[goals], minlength=lat.n)):
+            return None
+        cost[cost < 0] = 1e9
+    _, goal_of = linear_sum_assignment(cost**2)
+    goal_of = goal_of.tolist()  # robot -> goal index
+    pts = lat.points
+    nbr = lat.nbr.tolist()
+    gpts = pts[goals]
+    where = [int(v) for v in start_v]
+    occ = np.full(lat.n, -1)
+    occ[start_v] = np.arange(m)
+    occ = occ.tolist()
+    goal_vert = goals.tolist()
+    frows = [field[g] for g in range(m)]
+
+    def nexts(i: int) -> list[int]:
+        """Neighbours one step closer to robot i's target, the most direct first."""
+        g = goal_of[i]
+        row = frows[g]
+        v = where[i]
+        dv = row[v]
+        cand = [u for u in nbr[v] if u >= 0 and row[u] == dv - 1]
+        if len(cand) > 1:
+            gx, gy = gpts[g]
+            cand.sort(key=lambda u: (pts[u][0] - gx) ** 2 + (pts[u][1] - gy) ** 2)
+        return cand
+
+    if max_steps is None:
+        max_steps = int(field.max(initial=0)) * 4 + 4 * m + 100
+    order = sorted(range(m), key=lambda i: -float(cost[i, goal_of[i]]))
+    out = []
+    for _ in range(max_steps):
+        if time.perf_counter() > deadline:
+            return None
+        done = True
+        # target swaps and rotations
+        for i in order:
+            if where[i] == goal_vert[goal_of[i]]:
+                continue
+            done = False
+            c = nexts(i)
+            if not c:
+                continue
+            j = occ[c[0]]
+            if j < 0:
+                continue
+            if where[j] == goal_vert[goal_of[j]]:
+                goal_of[i], goal_of[j] = goal_of[j], goal_of[i]
+                continue
+            chain = [i]
+            seen = {i}
+            k = j
+            while k >= 0 and k not in seen and where[k] != goal_vert[goal_of[k]]:
+                chain.append(k)
+                seen.add(k)
+                ck = nexts(k)
+                k = occ[ck[0]] if ck else -1
+            if k == i and len(chain) > 1:
+                first = goal_of[chain[0]]
+                for x in range(len(chain) - 1):
+                    goal_of[chain[x]] = goal_of[chain[x + 1]]
+                goal_of[chain[-1]] = first
+        if done:
+            return out
+        moved = False
+        for i in order:
+            if where[i] == goal_vert[goal_of[i]]:
+                continue
+            for u in nexts(i):
+                if occ[u] < 0:
+                    occ[where[i]] = -1
+                    occ[u] = i
+                    where[i] = u
+                    moved = True
+                    break
+        if moved:
+            out.append(np.array(where))
+    return None
+
+
+# ----------------------------------------------------------------------------
+# the stage
+
+
+def lattice_waypoints(problem: Problem, deadline: float, spacing: float | None = None) -> np.ndarray | None:
+    """Raw waypoints ``(K + 1, m, 2)`` from the start to the target through the lattice,
+    or ``None`` when every try fails or the deadline passes.
+
+    Tries the spacings of :func:`_spacings`, each at four shifts of the lattice.
+    """
+    tries = [spacing] if spacing is not None else _spacings(problem)
+    for a in tries:
+        for shift in ((0.0, 0.0), (0.5, 0.5), (0.5, 0.0), (0.0, 0.5)):
+            if time.perf_counter() > deadline:
+                return None
+            out = _through(problem, build_lattice(problem, a, shift), deadline)
+            if out is not None:
+                return out
+    return None
+
+
+def _spacings(problem: Problem) -> list[float]:
+    """Lattice spacings to try: the CAPT spacing first when both placements are spaced a
+    little over the separation (one round onto the lattice then suffices in theory) and
+    the lattice keeps room for the robots, then the default."""
+    base = lattice_spacing(problem)
+    d = problem.separation
+    ds = min(_min_spacing(problem.start), _min_spacing(problem.target))
+    out = []
+    if ds > d * 1.002:
+        capt = d / math.sqrt(1.0 - (d / ds) ** 2) * _SLACK
+        room = (problem.width - 2 * problem.clearance) * (problem.height - 2 * problem.clearance)
+        if capt > base and room / capt**2 >= 4 * problem.m:
+            out.append(capt)
+    out.append(base)
+    return out
+
+
+def _min_spacing(pts: np.ndarray) -> float:
+    if len(pts) < 2:
+        return math.inf
+    return float(cKDTree(pts).query(pts, k=2)[0][:, 1].min())
+
+
+def _through(problem: Problem, lat: Lattice, deadline: float) -> np.ndarray | None:
+    if lat.n < problem.m:
+        return None
+    got = snap(problem, lat, problem.start, deadline)
+    if got is None:
+        return None
+    entry, sv = got
+    got = snap(problem, lat, problem.target, deadline)
+    if got is None:
+        return None
+    leave, tv = got
+    route = tswap(lat, sv, tv, deadline)
+    if route is None:
+        return None
+    where = route[-1] if route else sv
+    # the robot on vertex tv[j] ends on target j, along the target's rounds played backwards
+    at = np.full(lat.n, -1)
+    at[where] = np.arange(problem.m)
+    robot_of_target = at[tv]
+    if (robot_of_target < 0).any():
+        return None
+    inv = np.empty(problem.m, int)
+    inv[robot_of_target] = np.arange(problem.m)
+    steps = [problem.start.copy(), *entry]
+    steps += [lat.points[r] for r in route]
+    back = [problem.target, *leave][::-1]  # target j's robot in row j
+    steps += [cfg[inv] for cfg in back[1:]]
+    return np.asarray(steps)
