@@ -16,7 +16,6 @@ import sys
 from pathlib import Path
 
 from .argtypes import int_in, seconds
-from .words import plural
 
 __all__ = ["LINE_MAX", "main"]
 
@@ -173,24 +172,10 @@ def _cmd_run(args) -> int:
         time_limit=args.time_limit,
         overrides=combinations([parse_set(text, many=False) for text in args.set])[0],
     )
-    verdict = "ok" if result.exit_code == 0 else "FAILED"
-    print(f"  {verdict}: {_verdict_reason(result.report)}")
+    from .report import verdict
+
+    print(f"  {verdict(result.report)[1]}")
     return result.exit_code
-
-
-def _verdict_reason(report: dict) -> str:
-    plan = report.get("plan") or {}
-    sim = report.get("sim") or {}
-    if not plan.get("found"):
-        return "no plan within the limits"
-    reasons = []
-    if plan.get("valid") is False:
-        reasons.append("the plan comes closer than the margin")
-    if sim.get("contacts"):
-        reasons.append(f"{plural(sim['contacts'], 'contact')} in the physics run")
-    if sim and not sim.get("reached"):
-        reasons.append("not every robot reached a target")
-    return "; ".join(reasons) or "zero contacts, every robot on a target"
 
 
 def _version() -> str:

@@ -69,20 +69,44 @@ def verdict(report: dict) -> tuple[bool, str]:
         first = sim.get("first_contact") or (sim.get("contact_list") or [None])[0]
         where = f", the first {_describe_contact(first)}" if first else ""
         reasons.append(f"{n} contact{'s' if n != 1 else ''} in the physics run{where}")
-    if sim and sim.get("reached") is False:
+    if sim and sim.get("stopped"):
+        reasons.append(f"stopped: {sim['stopped']}")
+    if sim and sim.get("reached") is False and not sim.get("stopped"):
         got = _count(sim.get("reached_robots"))
         m = report.get("robots")
         count = f" ({got} of {m} did)" if got is not None and m is not None else ""
         reasons.append(f"not every robot reached a target{count}")
     if not sim and plan.get("found"):
         reasons.append("not executed in physics")
+    notes = _physics_notes(sim, report.get("robots"))
     if reasons:
-        return False, "FAILED: " + "; ".join(reasons)
+        return False, "FAILED: " + "; ".join(reasons + notes)
     if not ok:
         return False, "FAILED"
-    return True, (f"ok: plan found and executed with zero contacts, every robot on a target "
+    who = "every working robot" if sim.get("failed") else "every robot"
+    return True, (f"ok: plan found and executed with zero contacts, {who} on a target "
                   f"(min clearance {_num(sim.get('min_clearance'))}"
-                  + (f", margin {_num(report.get('margin'))})" if report.get("margin") is not None else ")"))
+                  + (f", margin {_num(report.get('margin'))})" if report.get("margin") is not None else ")")
+                  + "".join(f"; {n}" for n in notes))
+
+
+def _physics_notes(sim: dict, m) -> list[str]:
+    """What a realistic run adds to the verdict: failed robots, empty targets, replans, an unstable loop."""
+    notes = []
+    failed = sim.get("failed") or []
+    if failed:
+        notes.append(f"robot{'s' if len(failed) != 1 else ''} {', '.join(str(i) for i in failed[:10])}"
+                     f"{' ...' if len(failed) > 10 else ''} failed")
+    filled = sim.get("targets_filled")
+    if isinstance(filled, int) and isinstance(m, int) and 0 <= filled < m:
+        notes.append(f"{filled} of {m} targets filled")
+    replans = sim.get("replans") or []
+    if replans:
+        notes.append(f"{len(replans)} replan{'s' if len(replans) != 1 else ''}")
+    pm = sim.get("phase_margin_deg")
+    if isinstance(pm, (int, float)) and pm <= 0:
+        notes.append(f"the controller is unstable with its delays (phase margin {pm:.0f} deg)")
+    return notes
 
 
 def _describe_contact(c: dict) -> str:

@@ -130,6 +130,18 @@ def test_verdict_names_what_went_wrong():
     assert "not every robot reached a target (1 of 2 did)" in verdict(missed)[1]
     flags = _report(contacts=0, contact_list=[], reached=False, reached_robots=[True, False])  # as the physics run writes it
     assert "not every robot reached a target (1 of 2 did)" in verdict(flags)[1]
+    # a realistic run: a failed robot, a replan, one target left empty; ok for the working robots
+    recovered = _report(contacts=0, contact_list=[], reached=True, failed=[1], targets_filled=1,
+                        replans=[{"time": 2.0}], phase_margin_deg=40.0)
+    recovered["ok"] = True
+    good, line = verdict(recovered)
+    assert good and "every working robot on a target" in line
+    assert line.endswith("; robot 1 failed; 1 of 2 targets filled; 1 replan"), line
+    unstable = _report(contacts=0, contact_list=[], reached=False, stopped="a replan found no way on",
+                       phase_margin_deg=-42.0)
+    bad, line = verdict(unstable)
+    assert not bad and "stopped: a replan found no way on" in line and "not every robot" not in line
+    assert "unstable with its delays (phase margin -42 deg)" in line
     below = _report(contacts=0, contact_list=[])
     below["plan"]["valid"] = False
     assert "closer than the margin" in verdict(below)[1]
