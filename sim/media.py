@@ -355,7 +355,7 @@ class _Mp4Writer:
                 pix_fmt_out="yuv420p",
                 quality=_MP4_QUALITY,
                 macro_block_size=1,
-                ffmpeg_log_level="error",
+                ffmpeg_log_level="fatal",  # an interrupted pipe is not worth a line of its own
                 output_params=["-preset", "veryfast", "-movflags", "+faststart"],
             )
             self._gen.send(None)
