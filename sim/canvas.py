@@ -15,18 +15,13 @@ colour with a dark outline, a trail a pale line, a contact red.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+import numpy as np
 
-import numpy as np  # noqa: E402
-import pygame  # noqa: E402
+from planner.problem import Circle, Problem
 
-from planner.problem import Circle, Problem  # noqa: E402
-
+from ._pygame import pygame
 __all__ = [
     "BACKGROUND",
     "CONTACT",

@@ -15,17 +15,12 @@ glyph for every character of the text.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+import numpy as np
 
-import numpy as np  # noqa: E402
-import pygame  # noqa: E402
-import pygame.freetype  # noqa: E402
+from ._pygame import pygame
 
 __all__ = [
     "GlyphError",

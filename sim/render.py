@@ -14,19 +14,14 @@ asked for, so a video of any length is written with a few frames in memory.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Iterator, Sequence
 
-os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
-os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
-os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+import numpy as np
 
-import numpy as np  # noqa: E402
-import pygame  # noqa: E402
+from planner.problem import Circle, Problem
 
-from planner.problem import Circle, Problem  # noqa: E402
-
-from .canvas import (  # noqa: E402
+from ._pygame import pygame
+from .canvas import (
     BACKGROUND,
     CONTACT,
     LABEL_ON_CONTACT,
@@ -42,9 +37,9 @@ from .canvas import (  # noqa: E402
     robot_colors,
     tint,
 )
-from .params import MAX_RENDER_SIZE, RenderParams  # noqa: E402
-from .playback import MAX_VIDEO_SECONDS, Timing, frame_times, playback_speedup, timing  # noqa: E402
-from .words import plural  # noqa: E402
+from .params import MAX_RENDER_SIZE, RenderParams
+from .playback import MAX_VIDEO_SECONDS, Timing, frame_times, playback_speedup, timing
+from .words import plural
 
 __all__ = [
     "CONTACT",
