@@ -23,29 +23,39 @@ run`` does: plan, check, execute, render, write ``NAME.json``, the video and
 ['demo.gif']
 """
 
-from .execute import Contact, SimReport, execute
-from .media import write_video
-from .params import RenderParams, SimParams
-from .render import draw_scenario, render_frames
-from .report import write_run_page
-from .runner import InputError, RunResult, run_scenario
-from .scenario import Scenario, ScenarioError, build_problem, read_scenario
+from importlib import import_module
 
-__all__ = [
-    "Contact",
-    "InputError",
-    "RenderParams",
-    "RunResult",
-    "Scenario",
-    "ScenarioError",
-    "SimParams",
-    "SimReport",
-    "build_problem",
-    "draw_scenario",
-    "execute",
-    "read_scenario",
-    "render_frames",
-    "run_scenario",
-    "write_run_page",
-    "write_video",
-]
+# name -> the module that defines it; imported on first use, so that the
+# command line starts without loading the physics, the planner or pygame.
+_WHERE = {
+    "Contact": "execute",
+    "SimReport": "execute",
+    "execute": "execute",
+    "write_video": "media",
+    "RenderParams": "params",
+    "SimParams": "params",
+    "draw_scenario": "render",
+    "render_frames": "render",
+    "write_run_page": "report",
+    "InputError": "runner",
+    "RunResult": "runner",
+    "run_scenario": "runner",
+    "Scenario": "scenario",
+    "ScenarioError": "scenario",
+    "build_problem": "scenario",
+    "read_scenario": "scenario",
+}
+
+__all__ = sorted(_WHERE, key=str.lower)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))
