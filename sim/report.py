@@ -156,7 +156,7 @@ def write_run_page(
         "contacts": _contact_rows(sim),
         "contacts_total": int(sim.get("contacts") or 0),
         "shown_contacts": _SHOWN_CONTACTS,
-        "disturbances": _rows(sim.get("disturbances"), ("time", "robot", "kind", "impulse")),
+        "disturbances": _rows(_disturbance_list(sim), ("time", "robot", "kind", "impulse")),
         "replans": _rows(sim.get("replans"), ("time", "reason", "planning_time_s", "robots", "found", "steps")),
         "scenario_img": _png_uri(scenario_png) if scenario_png is not None else None,
         "scenario_size": None if scenario_png is None else (scenario_png.shape[1], scenario_png.shape[0]),
@@ -209,6 +209,8 @@ def _num(v, digits: int = 4) -> str:
         return "n/a" if v is None else ("yes" if v else "no")
     if isinstance(v, (int, np.integer)):
         return str(int(v))
+    if isinstance(v, (list, tuple)):  # a vector such as an impulse [N s, N s]
+        return "[" + ", ".join(_num(x, digits) for x in v) + "]"
     try:
         x = float(v)
     except (TypeError, ValueError):
@@ -310,6 +312,14 @@ def _meta(report: dict) -> list[str]:
     return items
 
 
+def _disturbance_list(sim: dict) -> list:
+    """The disturbances applied: the physics report's ``{impulses, pushes, failures, list}`` or a plain list."""
+    d = sim.get("disturbances")
+    if isinstance(d, dict):
+        d = d.get("list")
+    return d if isinstance(d, list) else []
+
+
 def _rows(items, keys: tuple[str, ...]) -> list[dict]:
     """Entries of a list of records as dicts holding every key (None where missing)."""
     out = []
@@ -408,7 +418,7 @@ def _events(ax, report: dict) -> None:
     if contacts:
         ax.plot(contacts, [0.0] * len(contacts), "|", transform=axis, color="#e61414", ms=16, mew=1.6,
                 clip_on=False, label="contact")
-    pushes = times("disturbances")
+    pushes = [d["time"] for d in _disturbance_list(sim) if isinstance(d, dict) and _finite(d.get("time"))]
     if pushes:
         ax.plot(pushes, [1.0] * len(pushes), "v", transform=axis, color="#8a4fd0", ms=7, clip_on=False,
                 label="disturbance")

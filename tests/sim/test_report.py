@@ -156,6 +156,18 @@ def test_verdict_names_what_went_wrong():
 # the page from plain data
 
 
+def test_page_lists_the_disturbances_as_the_physics_run_reports_them(tmp_path):
+    applied = {"impulses": 0, "pushes": 1, "failures": 1,
+               "list": [{"kind": "push", "robot": 3, "time": 3.5, "impulse": [-0.4231, 0.2665]},
+                        {"kind": "failure", "robot": 2, "time": 8.0, "impulse": None}]}
+    rep = _report(contacts=0, contact_list=[], disturbances=applied)
+    doc = _Page(write_run_page(tmp_path / "d.html", rep, _series(), _picture(), None).read_text(encoding="utf-8"))
+    assert doc.rows["disturbances"][1:] == [["3.5", "3", "push", "[-0.423, 0.267]"], ["8", "2", "failure", "n/a"]]
+    none = _report(contacts=0, contact_list=[], disturbances={"impulses": 0, "pushes": 0, "failures": 0, "list": []})
+    assert "disturbances" not in _Page(write_run_page(tmp_path / "n.html", none, _series(), _picture(), None)
+                                       .read_text(encoding="utf-8")).ids
+
+
 def test_page_holds_every_part_and_needs_nothing_else(tmp_path):
     first = {"time": 1.2, "kind": "robot-robot", "a": 0, "b": 1, "depth": 0.02, "witness": "pymunk"}
     rep = _report(
