@@ -279,7 +279,8 @@ def _sim_rows(report: dict) -> list[tuple[str, str, str]]:
     reached = _num(s.get("reached"))
     if s.get("reached_robots") is not None and m is not None:
         reached += f" ({_count(s['reached_robots'])} of {m} robots)"
-    rows.append(("every robot on a target", reached, f"worst final distance {_num(s.get('final_error'))}"))
+    label = "every working robot on a target" if s.get("failed") else "every robot on a target"
+    rows.append((label, reached, f"worst final distance {_num(s.get('final_error'))}"))
     rows.append(("simulated", f"{_num(s.get('sim_time_s'))} s",
                  f"in {_num(s.get('wall_time_s'), 3)} s wall-clock time"))
     return rows
