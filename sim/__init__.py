@@ -28,9 +28,9 @@ from importlib import import_module
 # name -> the module that defines it; imported on first use, so that the
 # command line starts without loading the physics, the planner or pygame.
 _WHERE = {
-    "Contact": "execute",
-    "SimReport": "execute",
-    "execute": "execute",
+    "Contact": "physics",
+    "SimReport": "physics",
+    "execute": "physics",
     "write_video": "media",
     "RenderParams": "params",
     "SimParams": "params",

@@ -1,7 +1,7 @@
 """Robots that are not ideal: what the executor adds between the controller and the bodies.
 
 Everything here is a plain function or a small record over arrays of all
-robots at once; :func:`sim.execute.execute` calls it at every physics step.
+robots at once; :func:`sim.execute` calls it at every physics step.
 
 Units.  A workspace unit counts as one metre and a mass unit as one
 kilogram wherever a force is named in newtons (N) or an impulse in newton

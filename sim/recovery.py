@@ -1,6 +1,6 @@
 """Online recovery: stop, plan again from where the robots are, go on.
 
-With ``sim.recovery.replan`` the executor (:func:`sim.execute.execute`)
+With ``sim.recovery.replan`` the executor (:func:`sim.execute`)
 watches every recorded sample.  When a working robot's tracking error
 exceeds ``recovery.trigger``, or a robot fails, it runs this sequence:
 

@@ -29,7 +29,7 @@ from planner.plan import read_plan_file
 
 from .budget import check_physics_budget, check_validator_budget
 from .errors import InputError
-from .execute import SimReport, execute
+from .physics import SimReport, execute
 from .legs import plan_legs
 from .media import atomic_path, has_mp4, write_video
 from .outputs import OutputSet, check_out_dir

@@ -5,7 +5,7 @@ Two sources, one format: a plain dict of arrays::
     {"times": (S,) [s], "min_gap": (S,) [units], "tracking_error": (S, m) [units]}
 
 * The physics run records them at every control step
-  (:attr:`sim.execute.SimReport.min_gap`, ``tracking_error``);
+  (:attr:`sim.SimReport.min_gap`, ``tracking_error``);
   :func:`series_arrays` takes them as ``float32`` and :func:`write_series`
   writes them beside the report as ``DIR/NAME-series.npz``, a compressed
   NumPy archive (read it with :func:`numpy.load`).  ``min_gap`` there is
@@ -42,7 +42,7 @@ _DATE = (1980, 1, 1, 0, 0, 0)  # the earliest date a zip entry can hold
 
 
 def series_arrays(report) -> dict[str, np.ndarray]:
-    """The ``float32`` arrays of a :class:`sim.execute.SimReport` under :data:`SERIES_KEYS`."""
+    """The ``float32`` arrays of a :class:`sim.SimReport` under :data:`SERIES_KEYS`."""
     return {key: np.ascontiguousarray(getattr(report, key), dtype=np.float32) for key in SERIES_KEYS}
 
 

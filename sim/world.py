@@ -84,7 +84,7 @@ def build_world(problem, params) -> World:
 
     ``params`` supplies the body mass (:class:`sim.params.SimParams`).  The
     caller may move the bodies before the first step (see
-    :func:`sim.execute.execute`, which places them at the plan's start).
+    :func:`sim.execute`, which places them at the plan's start).
     """
     space = pymunk.Space()
     space.gravity = (0.0, 0.0)

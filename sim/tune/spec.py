@@ -168,7 +168,7 @@ def run_one(spec: RunSpec) -> dict:
         else:
             row.update(_stats_fields(stats))
             if spec.simulate:
-                from ..execute import execute
+                from ..physics import execute
 
                 sim = execute(problem, result, sc.sim, rng, planner_params=params)
                 row["sim_ok"] = bool(sim.ok)

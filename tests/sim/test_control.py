@@ -7,7 +7,7 @@ import pytest
 from planner.plan import Plan
 from planner.problem import Problem
 from sim.control import pd_acceleration, reference_chunk
-from sim.execute import execute
+from sim.physics import execute
 from sim.params import SimParams
 
 

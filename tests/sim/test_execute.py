@@ -14,7 +14,7 @@ import pytest
 from planner.plan import Plan, min_jerk
 from planner.problem import Circle, Polygon, Problem
 from planner.validate import check_plan, min_clearance
-from sim.execute import Contact, SimReport, execute
+from sim.physics import Contact, SimReport, execute
 from sim.params import SimParams
 
 R = 0.5
@@ -134,7 +134,7 @@ import hashlib, sys
 import numpy as np
 sys.path.insert(0, {here!r})
 from test_execute import PARAMS, _valid_case
-from sim.execute import execute
+from sim.physics import execute
 problem, plan = _valid_case()
 r = execute(problem, plan, PARAMS)
 print(hashlib.sha256(r.positions.tobytes()).hexdigest(), len(r.contacts), repr(r.min_clearance))

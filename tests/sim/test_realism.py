@@ -13,7 +13,7 @@ import pytest
 
 from planner.plan import Plan
 from planner.problem import Problem
-from sim.execute import _execute, _execute_real, execute
+from sim.physics import _execute, _execute_real, execute
 from sim.params import Failure, Impulse, Noise, Pushes, SimParams
 from sim.realism import (
     G,

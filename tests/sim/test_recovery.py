@@ -11,7 +11,7 @@ import pytest
 
 from planner import Circle, PlannerParams, Problem, plan
 from planner.plan import Plan
-from sim.execute import execute
+from sim.physics import execute
 from sim.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
 from sim.recovery import RecoveryFailed, StopReference, drop_targets, parking, separation_step
 

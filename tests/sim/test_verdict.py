@@ -28,7 +28,7 @@ import pytest
 
 from planner.plan import Plan, min_jerk
 from planner.problem import Problem
-from sim.execute import execute
+from sim.physics import execute
 from sim.params import SimParams
 from sim.runner import run_scenario
 from sim.scenario import ScenarioError, build_problem, read_scenario
