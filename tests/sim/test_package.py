@@ -29,11 +29,12 @@ def test_public_names_are_functions_whichever_module_loads_first(first):
 
 
 def test_a_submodule_shadowing_a_public_name_is_caught():
-    # Negative control: a package attribute that is the module, not the function, fails the
-    # same check the test above makes.
-    import types
-    shadowed = types.ModuleType("sim.execute")
-    assert not (callable(shadowed) and getattr(shadowed, "__name__", "") == "execute")
+    # Negative control: with the package attribute replaced by the module of the same
+    # role (what a lazy package gets when a submodule shares a public name), the check fails.
+    shadow = "import sim, sim.physics\nsim.execute = sim.physics\n" + _CHECK
+    out = subprocess.run([sys.executable, "-c", shadow], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode != 0 and "AssertionError" in out.stderr
 
 
 def test_every_public_name_resolves():
