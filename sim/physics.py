@@ -50,6 +50,7 @@ from .realism import (
     streams,
 )
 from .recovery import AVERAGE, SETTLE, RecoveryFailed, Replan, StopReference, replan
+from .words import plural, reached_phrase
 from .world import build_world
 
 __all__ = ["Contact", "Disturbance", "Replan", "SimReport", "execute"]
@@ -133,6 +134,11 @@ class SimReport:
         return not self.contacts and self.reached and not self.stopped
 
     @property
+    def parked(self) -> int:
+        """Working robots that end on a parking place (failed robots block their targets)."""
+        return len(self.replans[-1].parked) if self.replans else 0
+
+    @property
     def first_contact(self) -> Contact | None:
         return self.contacts[0] if self.contacts else None
 
@@ -156,7 +162,7 @@ class SimReport:
         parts = []
         if self.contacts:
             c = self.contacts[0]
-            parts.append(f"{len(self.contacts)} contacts, the first: {c.describe()}")
+            parts.append(f"{plural(len(self.contacts), 'contact')}, the first: {c.describe()}")
         if self.stopped:
             parts.append(f"stopped: {self.stopped}")
         if self.reached_robots is not None and not self.reached and not self.stopped:
@@ -165,15 +171,15 @@ class SimReport:
             who = ", ".join(str(i) for i in missed[:10]) + (" ..." if len(missed) > 10 else "")
             parts.append(f"robots {who} end off target (worst {self.final_error:.3g})")
         if self.failed:
-            parts.append(f"robots {', '.join(str(i) for i in self.failed)} failed")
+            many = "s" if len(self.failed) != 1 else ""
+            parts.append(f"robot{many} {', '.join(str(i) for i in self.failed)} failed")
         m = 0 if self.reached_robots is None else len(self.reached_robots)
         if 0 <= self.targets_filled < m:
             parts.append(f"{self.targets_filled} of {m} targets filled")
         if self.replans:
-            parts.append(f"{len(self.replans)} replans")
+            parts.append(plural(len(self.replans), "replan"))
         if not self.contacts and not self.stopped and self.reached:
-            parts.insert(0, "no contact, every working robot on a target" if self.failed
-                         else "no contact, every robot on a target")
+            parts.insert(0, "no contact, " + reached_phrase(bool(self.failed), self.parked))
         if self.phase_margin_deg <= 0:
             parts.append(f"the controller is unstable with its delays (phase margin {self.phase_margin_deg:.0f} "
                          f"deg): lower kp and kd, or the latency")

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .media import atomic_path
+from .words import reached_phrase
 
 __all__ = ["EMBED_MAX_BYTES", "run_page", "verdict", "write_run_page"]
 
@@ -83,11 +84,19 @@ def verdict(report: dict) -> tuple[bool, str]:
         return False, "FAILED: " + "; ".join(reasons + notes)
     if not ok:
         return False, "FAILED"
-    who = "every working robot" if sim.get("failed") else "every robot"
-    return True, (f"ok: plan found and executed with zero contacts, {who} on a target "
+    who = reached_phrase(bool(sim.get("failed")), _parked(sim))
+    return True, (f"ok: plan found and executed with zero contacts, {who} "
                   f"(min clearance {_num(sim.get('min_clearance'))}"
                   + (f", margin {_num(report.get('margin'))})" if report.get("margin") is not None else ")")
                   + "".join(f"; {n}" for n in notes))
+
+
+def _parked(sim: dict) -> int:
+    """Working robots parked by the last replan (failed robots block their targets)."""
+    replans = sim.get("replans") or []
+    last = replans[-1] if replans and isinstance(replans[-1], dict) else {}
+    parked = last.get("parked") or []
+    return len(parked) if isinstance(parked, list) else 0
 
 
 def _physics_notes(sim: dict, m) -> list[str]:
@@ -279,7 +288,7 @@ def _sim_rows(report: dict) -> list[tuple[str, str, str]]:
     reached = _num(s.get("reached"))
     if s.get("reached_robots") is not None and m is not None:
         reached += f" ({_count(s['reached_robots'])} of {m} robots)"
-    label = "every working robot on a target" if s.get("failed") else "every robot on a target"
+    label = reached_phrase(bool(s.get("failed")), _parked(s)).split(" (")[0]
     rows.append((label, reached, f"worst final distance {_num(s.get('final_error'))}"))
     rows.append(("simulated", f"{_num(s.get('sim_time_s'))} s",
                  f"in {_num(s.get('wall_time_s'), 3)} s wall-clock time"))

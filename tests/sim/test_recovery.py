@@ -175,7 +175,7 @@ def test_a_failed_robot_causes_a_contact_without_recovery_and_none_with_it():
     assert np.linalg.norm(final[0] - [5.0, 5.0]) < 0.05  # braked where it failed
     d = with_.to_dict()
     assert d["failed"] == [0] and d["replans"][0]["reason"] == "robot 0 failed"
-    assert "robots 0 failed" in d["verdict"] and "1 replans" in d["verdict"]
+    assert "robot 0 failed" in d["verdict"] and d["verdict"].endswith("; 1 replan")
 
 
 def _blocking_case():
@@ -194,6 +194,9 @@ def test_a_robot_parks_when_a_failed_one_blocks_two_targets():
     assert report.contacts == () and report.ok, report.verdict
     assert report.targets_filled == 1  # only (5, 8.5): the others are blocked
     assert "1 of 3 targets filled" in report.verdict
+    assert report.parked == 1
+    assert report.verdict.startswith("no contact, every working robot on a target or parked (1 parked); "
+                                     "robot 0 failed"), report.verdict
 
 
 def test_a_replan_that_cannot_go_on_ends_the_run_with_the_reason():

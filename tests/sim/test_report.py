@@ -137,6 +137,13 @@ def test_verdict_names_what_went_wrong():
     good, line = verdict(recovered)
     assert good and "every working robot on a target" in line
     assert line.endswith("; robot 1 failed; 1 of 2 targets filled; 1 replan"), line
+    assert "or parked" not in line
+    # a working robot parked because the failed one blocks targets: said, not hidden
+    parked = _report(contacts=0, contact_list=[], reached=True, failed=[1], targets_filled=0,
+                     replans=[{"time": 2.0, "parked": [[3.0, 4.0]]}], phase_margin_deg=40.0)
+    parked["ok"] = True
+    good, line = verdict(parked)
+    assert good and "every working robot on a target or parked (1 parked)" in line, line
     unstable = _report(contacts=0, contact_list=[], reached=False, stopped="a replan found no way on",
                        phase_margin_deg=-42.0)
     bad, line = verdict(unstable)
