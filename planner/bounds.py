@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from .plan import step_duration
 from .problem import Problem
@@ -67,13 +65,15 @@ def bottleneck_distance(start, target) -> float:
 def _perfect(allowed: np.ndarray) -> bool:
     """Whether the bipartite graph of ``allowed`` pairs has a perfect matching.
 
-    Small graphs: a zero-cost assignment (scipy's LAP solver has the least
-    overhead); large ones: Hopcroft-Karp on the sparse graph.
+    A zero-cost assignment of the 0/1 costs ``~allowed`` (scipy's LAP
+    solver).  Not Hopcroft-Karp (scipy's ``maximum_bipartite_matching``):
+    on graphs without a perfect matching it can take seconds to minutes
+    (1000 robots in one half of the workspace, targets in the other: 20 s a
+    test, 470 s a bound), where the LAP solver takes 0.1 s; on graphs with
+    one both take well under a second.
     """
-    if len(allowed) <= 64:
-        r, c = linear_sum_assignment(~allowed)
-        return bool(allowed[r, c].all())
-    return bool(np.all(maximum_bipartite_matching(csr_matrix(allowed), perm_type="column") >= 0))
+    r, c = linear_sum_assignment(~allowed)
+    return bool(allowed[r, c].all())
 
 
 def lower_bounds(problem: Problem) -> tuple[float, float]:

@@ -32,15 +32,25 @@ def test_assignment_distances_match_brute_force(pts):
     assert min_sum_distance(start, target) == pytest.approx(_brute(start, target, sum), abs=1e-9)
 
 
-def test_large_bottleneck_uses_the_sparse_matching_and_agrees_with_a_direct_search():
-    rng = np.random.default_rng(3)
-    a, b = rng.random((90, 2)) * 100, rng.random((90, 2)) * 100
-    d = np.linalg.norm(a[:, None] - b[None], axis=2)
-    from scipy.optimize import linear_sum_assignment
+def test_large_bottleneck_agrees_with_a_search_by_hopcroft_karp():
+    # the reference tests every threshold with another algorithm (scipy's Hopcroft-Karp)
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import maximum_bipartite_matching
 
-    # the smallest threshold whose allowed pairs still hold a perfect matching
-    feasible = [v for v in np.unique(d) if (lambda ok: ok[linear_sum_assignment(~ok)].all())(d <= v)]
-    assert bottleneck_distance(a, b) == feasible[0]
+    rng = np.random.default_rng(3)
+    for a, b in ((rng.random((90, 2)) * 100, rng.random((90, 2)) * 100),
+                 (rng.random((80, 2)) * [100, 50], rng.random((80, 2)) * [100, 50] + [0, 50])):
+        d = np.linalg.norm(a[:, None] - b[None], axis=2)
+        values = np.unique(d)
+        got = bottleneck_distance(a, b)
+        k = int(np.searchsorted(values, got))
+        assert values[k] == got  # one of the distances
+
+        def perfect(v):
+            return bool(np.all(maximum_bipartite_matching(csr_matrix(d <= v), perm_type="column") >= 0))
+
+        # the threshold holds a perfect matching and the next smaller distance does not
+        assert perfect(got) and not perfect(values[k - 1])
 
 
 def _open_problem(m=6):
