@@ -9,7 +9,8 @@ anti-aliased.
 
 Conventions, the same in every picture and video (and named in the legend):
 a start is a hollow ring, a target a filled disc, a robot a disc in its own
-colour with a dark outline, a trail a pale line, a contact red.
+colour with a dark outline, a trail a pale line, a contact red, a robot that
+failed grey with a dark cross.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ TARGET = (236, 120, 40)
 TEXT = (20, 20, 24)
 CONTACT = (230, 20, 20)
 OUTLINE = (60, 60, 70)
+FAILED = (170, 170, 170)  # a robot that stopped actuating (videos), drawn with a cross
 LABEL_ON_CONTACT = (255, 255, 255)
 
 MIN_SIZE = 480
@@ -284,6 +286,13 @@ class Canvas:
         elif glyph == "contact":
             self.ring(s, CONTACT, c, r, max(2, int(r / 3)))
             self.disc(s, CONTACT, c, r / 2)
+        elif glyph == "failed":
+            self.disc(s, FAILED, c, r)
+            self.ring(s, OUTLINE, c, r, 1)
+            d = r * 0.6
+            w = max(1, int(round(r / 4)))
+            for sx in (-1, 1):
+                pygame.draw.line(s, OUTLINE, (c[0] - d, c[1] - sx * d), (c[0] + d, c[1] + sx * d), w)
         else:
             raise ValueError(f"unknown legend glyph {glyph!r}")
 

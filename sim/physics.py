@@ -173,6 +173,8 @@ class SimReport:
         if self.failed:
             many = "s" if len(self.failed) != 1 else ""
             parts.append(f"robot{many} {', '.join(str(i) for i in self.failed)} failed")
+        if self.parked:
+            parts.append(f"{plural(self.parked, 'robot')} parked")
         m = 0 if self.reached_robots is None else len(self.reached_robots)
         if 0 <= self.targets_filled < m:
             parts.append(f"{self.targets_filled} of {m} targets filled")

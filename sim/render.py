@@ -104,6 +104,8 @@ def render_frames(
     step_times: np.ndarray | None = None,
     title: str = "",
     targets: Sequence[tuple[float, np.ndarray]] | None = None,
+    replans: Sequence = (),
+    failures: Sequence[tuple[int, float]] = (),
 ) -> Frames:
     """The video frames of a recorded run, as a :class:`Frames` sequence.
 
@@ -130,6 +132,14 @@ def render_frames(
         of each leg in time order; a frame marks the placement of the leg
         under way (the first one's before its start time) and the header
         names the leg.  Default: ``problem.target`` throughout.
+    replans: records with ``time`` (the trigger [s]), ``planned_at`` [s]
+        and ``steps`` (:class:`sim.recovery.Replan`) of a run with online
+        recovery; from a trigger on the header says the swarm is braking
+        for replan k, then follows the new plan (``replan k: 6 steps``)
+        instead of the first plan's steps.
+    failures: ``(robot, time [s])`` of robots that stopped actuating; from
+        that time on the robot is drawn grey with a dark cross (and the
+        legend names it).
 
     The arguments are checked at once; frames are drawn when asked for.
     """
@@ -158,9 +168,19 @@ def render_frames(
         if not legs or any(p.shape != (problem.m, 2) for _, p in legs) or any(
                 b[0] < a[0] for a, b in zip(legs, legs[1:])):
             raise ValueError("targets must be (time, (m, 2) placement) pairs in time order")
+    try:
+        marks = sorted((float(r.time), float(r.planned_at), int(r.steps)) for r in replans)
+    except (AttributeError, TypeError, ValueError) as e:
+        raise ValueError(f"replans need time, planned_at and steps attributes: {e}") from None
+    try:
+        broken = sorted((float(tf), int(i)) for i, tf in failures)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"failures must be (robot, time) pairs: {e}") from None
+    if any(not 0 <= i < problem.m for _, i in broken):
+        raise ValueError(f"failures must name robots in [0, {problem.m})")
     clock = timing(t[-1] - t[0], params)
     rows = _contact_table(problem, contacts, t, pos)
-    return Frames(problem, t, pos, rows, params, clock, steps, str(title), legs)
+    return Frames(problem, t, pos, rows, params, clock, steps, str(title), legs, marks, broken)
 
 
 class _Contacts:
@@ -266,15 +286,20 @@ class Frames(Sequence):
     the drawing ``(n, 3) uint8``, most important first (for a GIF palette).
     """
 
-    def __init__(self, problem, t, pos, contacts: _Contacts, params, clock: Timing, steps, title, legs=None):
+    def __init__(self, problem, t, pos, contacts: _Contacts, params, clock: Timing, steps, title, legs=None,
+                 replans=(), failures=()):
         self.problem = problem
         self.timing = clock
         self.speedup = clock.speedup
         self._t, self._pos, self._contacts, self._steps = t, pos, contacts, steps
+        self._replans = tuple(replans)  # (trigger time, planned at, steps), in time order
+        self._failures = tuple(failures)  # (time, robot), in time order
         legend = [("robot", "robot"), ("start", "start (hollow)"), ("target", "target (filled)")]
         if params.trails:
             legend.append(("trail", "trail"))
         legend.append(("contact", "contact"))
+        if failures:
+            legend.append(("failed", "failed"))
         cv = Canvas(problem, params.size, legend=legend, start_color=START_MARK, target_color=TARGET_MARK)
         self.canvas = cv
         m = problem.m
@@ -377,7 +402,11 @@ class Frames(Sequence):
             hot[bb[bb >= 0]] = True
 
         r = cv.r
+        broken = {i for tf, i in self._failures if tf <= tc}
         for i in np.flatnonzero(~hot):
+            if i in broken:
+                cv.draw_glyph(surf, "failed", cur[i], r)
+                continue
             cv.disc(surf, self._colors[i], cur[i], r)
             cv.ring(surf, OUTLINE, cur[i], r, 1)
             self._label(surf, self._labels, i, cur[i])
@@ -448,6 +477,13 @@ class Frames(Sequence):
         steps = self._steps
         if steps is None:
             return ""
+        due = [n for n, (t0, _, _) in enumerate(self._replans) if t0 <= tc]
+        if due:
+            k = due[-1]
+            _, planned_at, count = self._replans[k]
+            if tc < planned_at:
+                return f"   braking for replan {k + 1}"
+            return f"   replan {k + 1}: {plural(count, 'step')}"
         k_all = len(steps) - 1
         if k_all == 0:
             return "   no motion planned"

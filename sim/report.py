@@ -106,6 +106,9 @@ def _physics_notes(sim: dict, m) -> list[str]:
     if failed:
         notes.append(f"robot{'s' if len(failed) != 1 else ''} {', '.join(str(i) for i in failed[:10])}"
                      f"{' ...' if len(failed) > 10 else ''} failed")
+    parked = _parked(sim)
+    if parked:
+        notes.append(f"{parked} robot{'s' if parked != 1 else ''} parked")
     filled = sim.get("targets_filled")
     if isinstance(filled, int) and isinstance(m, int) and 0 <= filled < m:
         notes.append(f"{filled} of {m} targets filled")
@@ -288,7 +291,7 @@ def _sim_rows(report: dict) -> list[tuple[str, str, str]]:
     reached = _num(s.get("reached"))
     if s.get("reached_robots") is not None and m is not None:
         reached += f" ({_count(s['reached_robots'])} of {m} robots)"
-    label = reached_phrase(bool(s.get("failed")), _parked(s)).split(" (")[0]
+    label = reached_phrase(bool(s.get("failed")), _parked(s))
     rows.append((label, reached, f"worst final distance {_num(s.get('final_error'))}"))
     rows.append(("simulated", f"{_num(s.get('sim_time_s'))} s",
                  f"in {_num(s.get('wall_time_s'), 3)} s wall-clock time"))

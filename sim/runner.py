@@ -186,7 +186,8 @@ def run_scenario(
         if render:
             legs = None if leg_times is None or len(targets) < 2 else list(zip(leg_times[:-1], targets))
             frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
-                                   step_times=result.times, title=name, targets=legs)
+                                   step_times=result.times, title=name, targets=legs, replans=sim.replans,
+                                   failures=[(d.robot, d.time) for d in sim.disturbances if d.kind == "failure"])
             report["video"] = frames.timing.to_dict()
             if frames.timing.raised:
                 say(f"  video: {frames.speedup:g}x speed, raised to keep it within {MAX_VIDEO_SECONDS:g} s")

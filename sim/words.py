@@ -11,11 +11,9 @@ def plural(n: int, noun: str, nouns: str | None = None) -> str:
 
 
 def reached_phrase(failed: bool, parked: int = 0) -> str:
-    """What a good run's robots did: ``every robot on a target``, or, when robots failed,
-    ``every working robot on a target`` (``... or parked (2 parked)`` when failed robots
-    block targets and working robots park instead)."""
+    """What a good run's robots did: ``every robot on a target``; when robots failed,
+    ``every working robot on a target``, or ``... on a target or parked`` when failed
+    robots block targets and working robots park instead (the caller says how many)."""
     if not failed:
         return "every robot on a target"
-    if parked > 0:
-        return f"every working robot on a target or parked ({parked} parked)"
-    return "every working robot on a target"
+    return "every working robot on a target" + (" or parked" if parked > 0 else "")

@@ -195,8 +195,8 @@ def test_a_robot_parks_when_a_failed_one_blocks_two_targets():
     assert report.targets_filled == 1  # only (5, 8.5): the others are blocked
     assert "1 of 3 targets filled" in report.verdict
     assert report.parked == 1
-    assert report.verdict.startswith("no contact, every working robot on a target or parked (1 parked); "
-                                     "robot 0 failed"), report.verdict
+    assert report.verdict.startswith("no contact, every working robot on a target or parked; "
+                                     "robot 0 failed; 1 robot parked"), report.verdict
 
 
 def test_a_replan_that_cannot_go_on_ends_the_run_with_the_reason():

@@ -11,6 +11,7 @@ from planner.problem import Circle, Polygon, Problem
 from sim.canvas import BACKGROUND, MAX_SIZE, MIN_SIZE, TEXT, fit_text, frame_size, label_font
 from sim.params import RenderParams
 from sim.playback import MAX_VIDEO_SECONDS
+from sim.render import _interpolate  # noqa: I001
 from sim.render import (
     CONTACT,
     START_MARK,
@@ -316,6 +317,63 @@ def test_steps_are_counted_from_one_and_settling_is_said():
     one = render_frames(p, t, pos, [], params, step_times=np.array([0.0, 5.0]))
     k = _frame_at(ft, 6.0)
     assert _shows(one[k][: one.canvas.header], status(k, "plan done (1 step), settling"))
+
+
+def test_after_a_replan_the_header_follows_the_new_plan():
+    from types import SimpleNamespace
+
+    p = _problem()
+    t, pos = _recording(p, seconds=10.0)
+    params = _params(speedup=1.0, size=400)
+    replans = [SimpleNamespace(time=4.0, planned_at=5.0, steps=6)]
+    fr = render_frames(p, t, pos, [], params, step_times=np.array([0.0, 3.0, 6.0, 8.0]), replans=replans)
+    font = fr.canvas.font
+    ft = frame_times(10.0, 1.0, params.fps)
+
+    def shows(k, tail):
+        return _shows(fr[k][: fr.canvas.header], _text(font, f"t = {ft[k]:.1f} s / 10.0 s   {tail}"))
+
+    k = _frame_at(ft, 3.5)
+    assert shows(k, "step 2/3")
+    k = _frame_at(ft, 4.5)
+    assert shows(k, "braking for replan 1") and not shows(k, "step 2/3")
+    for k in (_frame_at(ft, 7.0), len(fr) - 1):
+        assert shows(k, "replan 1: 6 steps")
+        assert not shows(k, "step 3/3") and not shows(k, "plan done (3 steps), settling")
+    with pytest.raises(ValueError, match="replans need"):
+        render_frames(p, t, pos, [], params, replans=[object()])
+
+
+def test_a_failed_robot_is_drawn_grey_with_a_cross_from_its_failure_on():
+    from sim.canvas import FAILED
+
+    p = _problem()
+    t, pos = _recording(p, seconds=10.0)
+    params = _params(speedup=1.0, size=400, trails=False)
+    fr = render_frames(p, t, pos, [], params, failures=[(1, 5.0)])
+    plain = render_frames(p, t, pos, [], params)
+    ft = frame_times(10.0, 1.0, params.fps)
+
+    def centre(frames, k):
+        x, y = frames.canvas.to_px(_interpolate(t, pos, np.array([ft[k]]))[0])[1]
+        return frames[k][int(round(y)) - 3 : int(round(y)) + 4, int(round(x)) - 8 : int(round(x)) + 9]
+
+    def grey(img):
+        return np.all(np.abs(img.astype(int) - np.array(FAILED)) <= 8, axis=-1)
+
+    before, after = _frame_at(ft, 4.0), _frame_at(ft, 6.0)
+    assert not grey(centre(fr, before)).any()
+    assert grey(centre(fr, after)).sum() > 10  # the grey disc around the cross
+    assert (centre(fr, after).max(axis=-1) < 100).any()  # the dark cross
+    assert np.array_equal(fr[before][fr.canvas.workspace_rows], plain[before][plain.canvas.workspace_rows])
+    assert not grey(centre(plain, after)).any()  # negative control: no failure, no grey robot
+    legend = fr[0][fr.canvas.workspace_rows.stop :]
+    assert _shows(legend, _text(fr.canvas.font, "failed"))
+    assert not _shows(plain[0][plain.canvas.workspace_rows.stop :], _text(plain.canvas.font, "failed"))
+    for c in robot_colors(200):
+        assert not grey(np.array([[c]], np.uint8)).any()
+    with pytest.raises(ValueError, match="failures must name robots"):
+        render_frames(p, t, pos, [], params, failures=[(9, 1.0)])
 
 
 def test_text_stays_in_the_header():

@@ -143,7 +143,8 @@ def test_verdict_names_what_went_wrong():
                      replans=[{"time": 2.0, "parked": [[3.0, 4.0]]}], phase_margin_deg=40.0)
     parked["ok"] = True
     good, line = verdict(parked)
-    assert good and "every working robot on a target or parked (1 parked)" in line, line
+    assert good and "every working robot on a target or parked (min clearance" in line, line
+    assert "; robot 1 failed; 1 robot parked; 0 of 2 targets filled" in line, line
     unstable = _report(contacts=0, contact_list=[], reached=False, stopped="a replan found no way on",
                        phase_margin_deg=-42.0)
     bad, line = verdict(unstable)
