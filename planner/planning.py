@@ -278,10 +278,12 @@ def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, r
     if "free-space roadmap" in out.legs:
         return
     raw = None
-    for _ in range(4):  # escapes are random: a stalled routing may pass on another try
+    # Escapes and ties are random: a stalled routing may pass on another try.  Goal
+    # swapping first (shorter plans), priority inheritance where it stalls.
+    for router in ("tswap", "tswap", "tswap", "pibt") * 3:
         if raw is not None or time.perf_counter() > deadline:
             break
-        raw = free_roadmap_waypoints(problem, deadline, rng)
+        raw = free_roadmap_waypoints(problem, deadline, rng, router=router)
     if raw is None:
         out.legs.setdefault("free-space roadmap", 0)
         return
