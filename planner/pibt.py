@@ -73,8 +73,8 @@ def pibt_route(roadmap, field: np.ndarray, goal_of: list[int], sep: float, deadl
     best = np.inf
     stale = 100 + 2 * m  # steps without a new lowest sum of roadmap lengths left
 
-    def at_goal(i: int) -> bool:
-        return where[i] == m + goal_of[i]
+    def at_goal(i: int) -> bool:  # a start may be a target's very point
+        return where[i] == m + goal_of[i] or bool((pts[where[i]] == pts[m + goal_of[i]]).all())
 
     for _ in range(max_steps):
         if time.perf_counter() > deadline:
@@ -146,11 +146,10 @@ class _Step:
         here = self.where[i]
         nb = self.nbrs[here]
         row = self.field[self.goal_of[i]]
-        key = row[nb] + 1e-9 * self.rng.random(len(nb))
-        order = nb[np.argsort(key)].tolist()
+        order = nb[np.lexsort((self.rng.random(len(nb)), row[nb]))].tolist()
         if pushed:
             return order
-        k = int(np.searchsorted(np.sort(key), row[here]))
+        k = int((row[nb] < row[here]).sum())
         return order[:k] + [-1]
 
     def decide(self, i: int, pushers: list[tuple[int, np.ndarray]]) -> bool:
