@@ -113,8 +113,11 @@ def medial_graph(problem: Problem, step: float, ridges: bool = True) -> tuple[np
     return v[ok], new_id[rv].reshape(-1, 2)
 
 
-def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.9) -> FreeRoadmap:
-    """The roadmap of the module docstring (starts, targets, grid, passages, corners)."""
+def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.9,
+                       deadline: float = float("inf")) -> FreeRoadmap:
+    """The roadmap of the module docstring (starts, targets, grid, passages, corners);
+    where the starts' and targets' vertices fall apart, the traced medial axis is added
+    (:func:`_bridge`; not after ``deadline``)."""
     from .guide import corner_points
     from .passages import passage_points
 
@@ -130,10 +133,8 @@ def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.
     keep = greedy_separated(extra, spacing * step, fixed)
     pts = np.vstack([fixed, extra[keep]])
     pairs = _clear_pairs(problem, pts, reach * sep)
-    for fine in (0.1, 0.04):
-        if _joined(len(pts), pairs, 2 * problem.m):
-            break
-        pts, pairs = _bridge(problem, pts, pairs, fine)
+    if time.perf_counter() < deadline and not _joined(len(pts), pairs, 2 * problem.m):
+        pts, pairs = _bridge(problem, pts, pairs, 0.1)
     return FreeRoadmap(pts, pairs, problem.m)
 
 
@@ -188,7 +189,7 @@ def free_roadmap_setup(problem: Problem, deadline: float) -> tuple | None:
     step = 0.5 * problem.separation
     if problem.width * problem.height / step**2 > _MAX_GRID:
         return None  # a workspace this large is the lattice stage's
-    rm = build_free_roadmap(problem)
+    rm = build_free_roadmap(problem, deadline=deadline)
     if time.perf_counter() > deadline:
         return None
     goals = np.arange(m, 2 * m)

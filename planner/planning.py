@@ -13,7 +13,7 @@ from .connect import sequenced_moves
 from .feasibility import feasibility
 from .freespace import free_roadmap_waypoints
 from .guide import Late
-from .lattice import lattice_waypoints
+from .lattice import lattice_candidates
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
@@ -240,10 +240,8 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             out.accepted = True
             return out
     if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
-        raw = lattice_waypoints(problem, deadline)
-        if raw is not None:
-            w = merge_steps(problem, _drop_idle(raw), deadline)
-            out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+        _lattice(problem, out, bound, deadline)
+        if out.best is not None:
             # the one-at-a-time stages rarely beat it with this many robots
             out.accepted = True
             return out
@@ -271,6 +269,26 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
     if problem.obstacles and out.best is None:  # nothing yet: before the pebble-graph roadmap
         _free_space(problem, out, bound, deadline, rng)
     return out
+
+
+#: A lattice plan within this factor of the makespan bound ends the search over lattices.
+LATTICE_GOOD = 2.5
+
+
+def _lattice(problem: Problem, out: _Direct, bound: float, deadline: float) -> None:
+    """Offer the shortest lattice plan (:mod:`planner.lattice`): after the first that
+    works, other shifts and spacings are tried while the best is over
+    :data:`LATTICE_GOOD` times the bound, the lattice has used less than 4.5 times what
+    the first took, and another such try would use under a quarter of the time left."""
+    t0 = time.perf_counter()
+    first = None
+    for raw in lattice_candidates(problem, deadline):
+        w = merge_steps(problem, _drop_idle(raw), deadline)
+        out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+        now = time.perf_counter()
+        first = first if first is not None else now - t0
+        if out.best[2] <= LATTICE_GOOD * bound or now - t0 > 4.5 * first or first > 0.25 * (deadline - now):
+            return
 
 
 def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, rng) -> None:
