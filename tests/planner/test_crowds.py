@@ -124,3 +124,50 @@ def test_formerly_failing_seeds_plan(name, seed):
     result, stats = plan(p, PlannerParams(time_limit=30.0), np.random.default_rng(seed))
     assert stats.found and stats.min_clearance >= p.margin - 1e-9
     assert time.perf_counter() - t0 < 30.0 * 1.1 + 0.5
+
+
+def _two_robots():
+    """Two robots left of a wall (x 15 to 20, y 0 to 30), their targets right of it."""
+    from planner import Polygon, Problem
+
+    wall = Polygon(np.array([[15.0, 0.0], [20.0, 0.0], [20.0, 30.0], [15.0, 30.0]]))
+    return Problem(40.0, 80.0, (wall,), 1.0, 0.1, np.array([[5.0, 5.0], [5.0, 20.0]]),
+                   np.array([[30.0, 5.0], [30.0, 20.0]])).validate()
+
+
+def _fake_lattices(problem, detours):
+    """Raw plans over the wall through via points ``d`` above it (steps that cannot
+    be joined into one: the straight line crosses the wall)."""
+    for d in detours:
+        time.sleep(0.01)
+        via = np.array([[17.5, 32.0 + d], [17.5, 35.0 + d]])
+        yield np.stack([problem.start, via, problem.target])
+
+
+def test_lattice_keeps_the_shortest_shift(monkeypatch):
+    import planner.planning as planning
+    from planner.bounds import lower_bounds
+
+    p = _two_robots()
+    bound = lower_bounds(p)[0]
+    monkeypatch.setattr(planning, "LATTICE_GOOD", 0.5)  # never good enough: every try runs
+    monkeypatch.setattr(planning, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
+    out = planning._Direct()
+    planning._lattice(p, out, bound, time.perf_counter() + 30)
+    spans = [planning._makespan(p, planning.merge_steps(p, w, None)) for w in _fake_lattices(p, [8, 0.5, 6])]
+    assert out.best[2] == pytest.approx(min(spans)) and min(spans) < spans[0]
+
+
+def test_lattice_stops_at_a_good_enough_plan(monkeypatch):
+    """Negative control of the above: within LATTICE_GOOD of the bound, the first is kept."""
+    import planner.planning as planning
+    from planner.bounds import lower_bounds
+
+    p = _two_robots()
+    bound = lower_bounds(p)[0]
+    monkeypatch.setattr(planning, "LATTICE_GOOD", 100.0)
+    monkeypatch.setattr(planning, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
+    out = planning._Direct()
+    planning._lattice(p, out, bound, time.perf_counter() + 30)
+    first = planning._makespan(p, planning.merge_steps(p, next(_fake_lattices(p, [8])), None))
+    assert out.best[2] == pytest.approx(first)
