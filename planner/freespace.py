@@ -11,8 +11,12 @@ builds one roadmap of the free space instead:
   points thinned to keep ``0.7`` separations apart (a medial-axis flavour:
   passages and corners are where the free space is thinnest, as in Han and
   Yu's medial-axis pebble graphs for dense unlabeled discs);
-* its edges join vertices less than ``1.6`` separations apart whose
-  segment is clear of the obstacles and walls (exact).
+* its edges join vertices less than ``2.2`` separations apart whose
+  segment is clear of the obstacles and walls (exact);
+* where the starts' and targets' vertices still fall into different
+  components (a channel whose clear band is a few hundredths wide, or
+  curved, has no straight clear edge between thinned vertices), the
+  medial axis traced 0.1 apart is added with its Voronoi ridges as edges.
 
 Vertices need not be separated from each other: which robots may stand or
 move where is decided by exact tests, not by the graph.  Routing is TSWAP
@@ -25,7 +29,9 @@ robot's move already decided in this step and from the robots not yet
 decided, where they stand (every pair is therefore tested with both
 actual motions by whichever decides second); a robot blocked by one
 resting on its own target swaps targets with it, and a cycle of robots
-each blocked by the next rotates its targets.
+each blocked by the next rotates its targets.  The other routing is PIBT
+(:mod:`planner.pibt`, robots pushing each other aside); either one that
+stalls is finished one robot at a time (:mod:`planner.endgame`).
 """
 
 from __future__ import annotations

@@ -231,20 +231,23 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
     if not params.auto or _GOOD_ENOUGH[1] is None:
         return None
     out = _Direct()
-    bound = lower_bounds(problem)[0]
     end = _at_once(problem, problem.start, problem.target)
     if end is not None:
         one = np.stack([problem.start, end])
         out.offer("one step", 1, (one, 1, _makespan(problem, one)))
-        if out.best[2] <= _GOOD_ENOUGH[1] * bound:
+        if out.best[2] <= _GOOD_ENOUGH[1] * lower_bounds(problem)[0]:
             out.accepted = True
             return out
     if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
-        _lattice(problem, out, bound, deadline)
+        _lattice(problem, out, deadline)
         if out.best is not None:
             # the one-at-a-time stages rarely beat it with this many robots
             out.accepted = True
             return out
+    # The bound costs about a second at 1000 robots: not before the lattice needs it.
+    if time.perf_counter() > deadline:
+        return out
+    bound = lower_bounds(problem)[0]
     if len(problem.obstacles) >= CLUTTER:  # the stage that works among many obstacles, first
         _free_space(problem, out, bound, deadline, rng)
         if out.accepted:
@@ -275,7 +278,7 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
 LATTICE_GOOD = 2.5
 
 
-def _lattice(problem: Problem, out: _Direct, bound: float, deadline: float) -> None:
+def _lattice(problem: Problem, out: _Direct, deadline: float) -> None:
     """Offer the shortest lattice plan (:mod:`planner.lattice`): after the first that
     works, other shifts and spacings are tried while the best is over
     :data:`LATTICE_GOOD` times the bound, the lattice has used less than 4.5 times what
@@ -287,7 +290,7 @@ def _lattice(problem: Problem, out: _Direct, bound: float, deadline: float) -> N
         out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
         now = time.perf_counter()
         first = first if first is not None else now - t0
-        if out.best[2] <= LATTICE_GOOD * bound or now - t0 > 4.5 * first or first > 0.25 * (deadline - now):
+        if out.best[2] <= LATTICE_GOOD * lower_bounds(problem)[0] or now - t0 > 4.5 * first or first > 0.25 * (deadline - now):
             return
 
 

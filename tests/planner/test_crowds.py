@@ -146,14 +146,12 @@ def _fake_lattices(problem, detours):
 
 def test_lattice_keeps_the_shortest_shift(monkeypatch):
     import planner.planning as planning
-    from planner.bounds import lower_bounds
 
     p = _two_robots()
-    bound = lower_bounds(p)[0]
     monkeypatch.setattr(planning, "LATTICE_GOOD", 0.5)  # never good enough: every try runs
     monkeypatch.setattr(planning, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
     out = planning._Direct()
-    planning._lattice(p, out, bound, time.perf_counter() + 30)
+    planning._lattice(p, out, time.perf_counter() + 30)
     spans = [planning._makespan(p, planning.merge_steps(p, w, None)) for w in _fake_lattices(p, [8, 0.5, 6])]
     assert out.best[2] == pytest.approx(min(spans)) and min(spans) < spans[0]
 
@@ -161,13 +159,11 @@ def test_lattice_keeps_the_shortest_shift(monkeypatch):
 def test_lattice_stops_at_a_good_enough_plan(monkeypatch):
     """Negative control of the above: within LATTICE_GOOD of the bound, the first is kept."""
     import planner.planning as planning
-    from planner.bounds import lower_bounds
 
     p = _two_robots()
-    bound = lower_bounds(p)[0]
     monkeypatch.setattr(planning, "LATTICE_GOOD", 100.0)
     monkeypatch.setattr(planning, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
     out = planning._Direct()
-    planning._lattice(p, out, bound, time.perf_counter() + 30)
+    planning._lattice(p, out, time.perf_counter() + 30)
     first = planning._makespan(p, planning.merge_steps(p, next(_fake_lattices(p, [8])), None))
     assert out.best[2] == pytest.approx(first)
