@@ -293,7 +293,9 @@ def _lattice(problem: Problem, out: _Direct, deadline: float) -> None:
         out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
         now = time.perf_counter()
         first = first if first is not None else now - t0
-        if now > deadline or out.best[2] <= LATTICE_GOOD * lower_bounds(problem)[0] or now - t0 > 4.5 * first or first > 0.25 * (deadline - now):
+        # (the bound, about a second at 1000 robots, only when another try could follow)
+        if (now > deadline or now - t0 > 4.5 * first or first > 0.25 * (deadline - now)
+                or out.best[2] <= LATTICE_GOOD * lower_bounds(problem)[0]):
             return
 
 
