@@ -31,7 +31,10 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     Returns ``(Plan, PlanStats)``; the plan has passed the exact validator
     (its minimum gap is at least the margin).  Raises :class:`NoPlanFound`,
     carrying the stats, when no plan is found within the limits.
-    ``rng`` is the run's one generator (default: seeded with 0).
+    ``rng`` is the run's one generator (default: seeded with 0).  A plan
+    found when the time limit has passed is returned without the makespan
+    and path-length lower bounds in its stats (NaN, and
+    ``stats.extra["lower_bounds"]`` says why) unless they were already known.
     """
     params = params or PlannerParams()
     if params.margin_extra:
