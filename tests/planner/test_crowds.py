@@ -167,3 +167,35 @@ def test_lattice_stops_at_a_good_enough_plan(monkeypatch):
     planning._lattice(p, out, time.perf_counter() + 30)
     first = planning._makespan(p, planning.merge_steps(p, next(_fake_lattices(p, [8])), None))
     assert out.best[2] == pytest.approx(first)
+
+
+def _late_direct(delay: float):
+    """A stand-in for the direct tries: the straight plan, offered after ``delay`` seconds."""
+    import planner.planning as planning
+
+    def direct(problem, params, memo, deadline=float("inf"), rng=None):
+        time.sleep(delay)
+        out = planning._Direct()
+        w = np.stack([problem.start, problem.target])
+        out.offer("one step", 1, (w, 1, planning._makespan(problem, w)))
+        out.accepted = True
+        return out
+
+    return direct
+
+
+@pytest.mark.parametrize("late", [True, False])
+def test_bounds_are_skipped_for_a_plan_found_late(monkeypatch, late):
+    import math
+
+    import planner.planning as planning
+    from planner import Problem
+
+    p = Problem(40.0, 40.0, (), 1.0, 0.1, np.array([[5.0, 5.0], [5.0, 20.0]]),
+                np.array([[30.0, 5.0], [30.0, 20.0]])).validate()
+    monkeypatch.setattr(planning, "_direct", _late_direct(0.3 if late else 0.0))
+    monkeypatch.setattr(planning, "_at_once", lambda problem, a, b: None)  # no shortcut past _direct
+    result, stats = plan(p, PlannerParams(time_limit=0.1 if late else 30.0), np.random.default_rng(0))
+    assert stats.found
+    assert math.isnan(stats.makespan_lower_bound_s) == late
+    assert ("lower_bounds" in stats.extra) == late
