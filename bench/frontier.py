@@ -4,7 +4,12 @@ Run ``python -m bench.frontier`` (``--help`` for the options; ``--quick``
 for a small version).  One table: per case, the seeds run, how many were
 proven unsolvable before planning (and the slowest proof), how many of the
 rest were solved, the median and largest planning time, the peak memory of
-the case's process and the median makespan over its lower bound.
+the case's process and the median makespan over its lower bound.  A second
+table (the full run, or ``--time-limits`` alone) checks that ``plan``
+returns within ``1.1 time_limit + 0.5 s``: 200 and 1000 random robots,
+lines of 200 and 500 into letters, 60 obstacles and 40 % density with 50
+robots, at time limits of 0.5, 2 and 5 s, three seeds each, wall time
+around the call whether or not a plan was found.
 
 Cases (robot radius 1, margin 0.1, max speed and acceleration 2):
 
@@ -57,7 +62,7 @@ from planner import Polygon, Problem
 
 from ._common import MARGIN, RADIUS, machine_info, markdown_table, percentile
 
-__all__ = ["CASES", "COLUMNS", "Case", "case_problem", "main", "run_case"]
+__all__ = ["CASES", "COLUMNS", "LIMIT_COLUMNS", "Case", "case_problem", "limit_rows", "main", "run_case"]
 
 LETTERS = ("A", "M", "N", "C", "phi", "lambda")
 COVERAGE = 0.10  # share of the workspace the robots' discs cover in random-mM
@@ -306,19 +311,40 @@ def _run_case(case: Case, seeds: list[int], time_limit: float) -> dict:
     return {"records": records, "rss_mib": _maxrss_mib()}
 
 
-def _child(conn, case, seeds, time_limit):
+def _run_limits(case: Case, seeds: list[int], limits: tuple) -> dict:
+    """Wall time of each ``plan`` call (found or not) per time limit."""
+    from planner import NoPlanFound, PlannerParams, plan
+
+    from ._common import warm_up_planner
+
+    warm_up_planner(min(limits))
+    out = []
+    for limit in limits:
+        for seed in seeds:
+            problem = case_problem(case, seed)
+            t0 = time.perf_counter()
+            try:
+                plan(problem, PlannerParams(time_limit=limit), np.random.default_rng(seed))
+                found = True
+            except NoPlanFound:
+                found = False
+            out.append({"limit": limit, "seed": seed, "found": found, "wall_s": time.perf_counter() - t0})
+    return {"records": out, "rss_mib": _maxrss_mib()}
+
+
+def _child(conn, case, seeds, time_limit, limits=None):
     try:
-        conn.send(_run_case(case, seeds, time_limit))
+        conn.send(_run_case(case, seeds, time_limit) if limits is None else _run_limits(case, seeds, limits))
     except Exception as exc:  # reported to the parent
         conn.send({"error": repr(exc)})
     conn.close()
 
 
-def run_case(case: Case, seeds: list[int], time_limit: float) -> dict:
-    """One table row, measured in a fresh spawned process."""
+def _in_child(case: Case, seeds: list[int], time_limit: float, limits=None) -> dict:
+    """``_run_case`` (or ``_run_limits``) in a fresh spawned process."""
     ctx = mp.get_context("spawn")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(send, case, seeds, time_limit), daemon=True)
+    proc = ctx.Process(target=_child, args=(send, case, seeds, time_limit, limits), daemon=True)
     proc.start()
     send.close()
     result = None
@@ -334,6 +360,43 @@ def run_case(case: Case, seeds: list[int], time_limit: float) -> dict:
         recv.close()
     if result is None:
         result = {"error": "the worker process did not answer in time"}
+    return result
+
+
+#: The time-limit table: cases, limits [s], seeds per case and limit.
+LIMIT_CASES = ("random-m200", "line-letter-m200", "random-m1000", "line-letter-m500", "clutter-60-m50", "density-40-m50")
+LIMITS = (0.5, 2.0, 5.0)
+LIMIT_SEEDS = 3
+LIMIT_COLUMNS = ["case", "m", "time limit [s]", "runs", "found", "median wall [s]", "max wall [s]",
+                 "bar [s]", "within bar"]
+
+
+def limit_rows(names=LIMIT_CASES, limits=LIMITS, seeds: int = LIMIT_SEEDS) -> list[dict]:
+    """Whether ``plan`` returns within ``1.1 time_limit + 0.5 s``: one row per case and
+    limit, each case in a fresh process, wall time around the ``plan`` call."""
+    rows = []
+    for name in names:
+        case = next(c for c in CASES if c.name == name)
+        result = _in_child(case, list(range(seeds)), max(limits), limits)
+        if "error" in result:
+            rows.append({"case": name, "m": case.m, "within bar": f"error: {result['error'][:60]}"})
+            continue
+        for limit in limits:
+            rec = [r for r in result["records"] if r["limit"] == limit]
+            walls = [r["wall_s"] for r in rec]
+            bar = 1.1 * limit + 0.5
+            rows.append({"case": name, "m": case.m, "time limit [s]": limit, "runs": len(rec),
+                         "found": sum(r["found"] for r in rec), "median wall [s]": percentile(walls, 50),
+                         "max wall [s]": max(walls), "bar [s]": bar,
+                         "within bar": "yes" if max(walls) <= bar else "no"})
+        print(f"  time limits, {name}: " + ", ".join(f"{r['time limit [s]']:g} s -> max {r['max wall [s]']:.2f} s"
+                                                    for r in rows if r["case"] == name), file=sys.stderr, flush=True)
+    return rows
+
+
+def run_case(case: Case, seeds: list[int], time_limit: float) -> dict:
+    """One table row, measured in a fresh spawned process."""
+    result = _in_child(case, seeds, time_limit)
     row = {"case": case.name, "m": case.m}
     if "error" in result:
         row["solved"] = f"error: {result['error'][:60]}"
@@ -367,6 +430,8 @@ def _parse(argv):
     ap.add_argument("--quick", action="store_true", help="each case's small seed count")
     ap.add_argument("--time-limit", type=float, default=60.0, help="planning time limit per run [s] (default 60)")
     ap.add_argument("--list", action="store_true", help="list the cases and exit")
+    ap.add_argument("--time-limits", action="store_true",
+                    help="only the time-limit table (the full run, without --cases, prints both)")
     args = ap.parse_args(argv)
     if args.seeds is not None and args.seeds < 1:
         ap.error(f"--seeds must be an int >= 1, got {args.seeds}")
@@ -384,6 +449,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
             print(c.name)
         return []
     rows = []
+    if args.time_limits:
+        cases = []
     for case in cases:
         n = args.seeds or (case.quick_seeds if args.quick else case.seeds)
         row = run_case(case, list(range(n)), args.time_limit)
@@ -393,7 +460,14 @@ def main(argv: list[str] | None = None) -> list[dict]:
               file=sys.stderr, flush=True)
     print("# swarmform frontier\n\n" + machine_info())
     print(f"- settings: time limit {args.time_limit:g} s, auto mode, seeds 0..N-1 per case\n")
-    print(markdown_table(COLUMNS, rows))
+    if rows:
+        print(markdown_table(COLUMNS, rows))
+    if args.time_limits or args.cases is None:
+        limits = limit_rows(seeds=1 if args.quick else LIMIT_SEEDS)
+        print(f"\n## time_limit honoured (returns within 1.1 time_limit + 0.5 s; seeds 0..N-1, "
+              f"wall time around plan())\n")
+        print(markdown_table(LIMIT_COLUMNS, limits))
+        rows = rows + limits
     return rows
 
 

@@ -11,8 +11,12 @@ builds one roadmap of the free space instead:
   points thinned to keep ``0.7`` separations apart (a medial-axis flavour:
   passages and corners are where the free space is thinnest, as in Han and
   Yu's medial-axis pebble graphs for dense unlabeled discs);
-* its edges join vertices less than ``1.6`` separations apart whose
-  segment is clear of the obstacles and walls (exact).
+* its edges join vertices less than ``2.2`` separations apart whose
+  segment is clear of the obstacles and walls (exact);
+* where the starts' and targets' vertices still fall into different
+  components (a channel whose clear band is a few hundredths wide, or
+  curved, has no straight clear edge between thinned vertices), the
+  medial axis traced 0.1 apart is added with its Voronoi ridges as edges.
 
 Vertices need not be separated from each other: which robots may stand or
 move where is decided by exact tests, not by the graph.  Routing is TSWAP
@@ -25,7 +29,9 @@ robot's move already decided in this step and from the robots not yet
 decided, where they stand (every pair is therefore tested with both
 actual motions by whichever decides second); a robot blocked by one
 resting on its own target swaps targets with it, and a cycle of robots
-each blocked by the next rotates its targets.
+each blocked by the next rotates its targets.  The other routing is PIBT
+(:mod:`planner.pibt`, robots pushing each other aside); either one that
+stalls is finished one robot at a time (:mod:`planner.endgame`).
 """
 
 from __future__ import annotations
@@ -38,7 +44,7 @@ from scipy.spatial import cKDTree
 from .geometry import closest_approach, greedy_separated, point_segment_distance
 from .problem import Problem
 
-__all__ = ["FreeRoadmap", "build_free_roadmap", "free_roadmap_waypoints"]
+__all__ = ["FreeRoadmap", "build_free_roadmap", "free_roadmap_setup", "free_roadmap_waypoints"]
 
 _MAX_GRID = 250_000  # grid points of half a separation beyond which the stage does not run
 
@@ -74,6 +80,12 @@ def medial_points(problem: Problem, step: float = 0.25) -> np.ndarray:
     """Clear points on the free space's medial axis: the Voronoi vertices of points spaced
     ``step`` along every obstacle outline and wall that keep the clearance (each lies
     midway between two nearest outline points, along the middle of a channel)."""
+    return medial_graph(problem, step, ridges=False)[0]
+
+
+def medial_graph(problem: Problem, step: float, ridges: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(points, edges)``: the clear Voronoi vertices of :func:`medial_points` and the
+    Voronoi ridges between two of them whose segment is clear (exact; with ``ridges``)."""
     from scipy.spatial import Voronoi
 
     w, h = problem.width, problem.height
@@ -91,16 +103,27 @@ def medial_points(problem: Problem, step: float = 0.25) -> np.ndarray:
             n = max(1, int(np.ceil(np.linalg.norm(q - p) / step)))
             samples.append(p + (q - p) * (np.arange(n) / n)[:, None])
     pts = np.unique(np.round(np.vstack(samples), 12), axis=0)
+    none = (np.zeros((0, 2)), np.zeros((0, 2), int))
     if len(pts) < 4:
-        return np.zeros((0, 2))
-    v = Voronoi(pts).vertices
-    inside = (v[:, 0] > 0) & (v[:, 0] < w) & (v[:, 1] > 0) & (v[:, 1] < h)
-    v = v[inside]
-    return v[env.points_clear(v, problem.clearance)]
+        return none
+    vor = Voronoi(pts)
+    v = vor.vertices
+    ok = (v[:, 0] > 0) & (v[:, 0] < w) & (v[:, 1] > 0) & (v[:, 1] < h)
+    ok[ok] = env.points_clear(v[ok], problem.clearance)
+    new_id = np.cumsum(ok) - 1
+    if not ridges:
+        return v[ok], none[1]
+    rv = np.array([r for r in vor.ridge_vertices if r[0] >= 0 and r[1] >= 0], int).reshape(-1, 2)
+    rv = rv[ok[rv[:, 0]] & ok[rv[:, 1]]]
+    rv = rv[env.segments_clear(v[rv[:, 0]], v[rv[:, 1]], problem.clearance)] if len(rv) else rv
+    return v[ok], new_id[rv].reshape(-1, 2)
 
 
-def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.9) -> FreeRoadmap:
-    """The roadmap of the module docstring (starts, targets, grid, passages, corners)."""
+def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.9,
+                       deadline: float = float("inf")) -> FreeRoadmap:
+    """The roadmap of the module docstring (starts, targets, grid, passages, corners);
+    where the starts' and targets' vertices fall apart, the traced medial axis is added
+    (:func:`_bridge`; not after ``deadline``)."""
     from .guide import corner_points
     from .passages import passage_points
 
@@ -115,47 +138,112 @@ def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.
     fixed = np.vstack([problem.start, problem.target])
     keep = greedy_separated(extra, spacing * step, fixed)
     pts = np.vstack([fixed, extra[keep]])
-    pairs = cKDTree(pts).query_pairs(reach * sep, output_type="ndarray")
+    pairs = _clear_pairs(problem, pts, reach * sep)
+    if time.perf_counter() < deadline and not _joined(len(pts), pairs, 2 * problem.m):
+        pts, pairs = _bridge(problem, pts, pairs, 0.1)
+    return FreeRoadmap(pts, pairs, problem.m)
+
+
+def _clear_pairs(problem: Problem, pts: np.ndarray, reach: float, first: int = 0) -> np.ndarray:
+    """``(E, 2)`` pairs of points less than ``reach`` apart whose segment is clear
+    (exact), at least one of them from index ``first`` on."""
+    pairs = cKDTree(pts).query_pairs(reach, output_type="ndarray").reshape(-1, 2)
+    pairs = pairs[pairs.max(axis=1) >= first]
     if len(pairs):
-        pairs = pairs[problem.env.segments_clear(pts[pairs[:, 0]], pts[pairs[:, 1]], c)]
-    return FreeRoadmap(pts, pairs.reshape(-1, 2), problem.m)
+        pairs = pairs[problem.env.segments_clear(pts[pairs[:, 0]], pts[pairs[:, 1]], problem.clearance)]
+    return pairs.reshape(-1, 2)
 
 
-def free_roadmap_waypoints(problem: Problem, deadline: float, rng: np.random.Generator | None = None,
-                           max_steps: int | None = None, escapes: int = 60) -> np.ndarray | None:
-    """Raw waypoints ``(K + 1, m, 2)`` from the start to the target along the free-space
-    roadmap, or ``None`` when routing stalls, a target is out of reach or the deadline passes.
+def _joined(n: int, pairs: np.ndarray, k: int) -> bool:
+    """Whether the first ``k`` of ``n`` vertices are in one component of the graph."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
 
-    A time step in which nobody can move closer to a target becomes an *escape* step
-    (with ``rng``; at most ``escapes`` of them): robots, in random order, take a random
-    clear edge, wherever it leads, which unjams crowds that wait on each other."""
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(g, directed=False)
+    return len(np.unique(label[:k])) == 1
+
+
+def _bridge(problem: Problem, pts: np.ndarray, pairs: np.ndarray, fine: float) -> tuple:
+    """The roadmap with the medial axis traced ``fine`` apart added (its Voronoi ridges as
+    edges, every roadmap vertex joined to the axis points within a separation): a channel
+    whose clear band is a few hundredths wide, or curved, has no straight clear edges
+    between the thinned vertices, and this joins what the free space joins (used where the
+    start's and the target's vertices fell apart)."""
+    extra, ridges = medial_graph(problem, fine)
+    n = len(pts)
+    both = np.vstack([pts, extra])
+    near = cKDTree(extra).query_ball_point(pts, problem.separation, return_sorted=False) if len(extra) else []
+    link = np.array([(i, n + j) for i, js in enumerate(near) for j in js], int).reshape(-1, 2)
+    if len(link):
+        link = link[problem.env.segments_clear(both[link[:, 0]], both[link[:, 1]], problem.clearance)]
+    return both, np.vstack([pairs, ridges + n, link]).astype(int)
+
+
+def free_roadmap_setup(problem: Problem, deadline: float) -> tuple | None:
+    """``(roadmap, field, goal_of)``: the roadmap, every vertex's roadmap length to each
+    target (``field[g]``), and the minimum sum of squared roadmap lengths assignment of
+    robots to targets; ``None`` when the workspace is too large for the roadmap's grid,
+    a robot cannot reach the target it must take, or the deadline passes.  Remembered
+    on the problem (routing tries with other random draws reuse it)."""
     from scipy.optimize import linear_sum_assignment
 
+    memo = problem.__dict__.setdefault("_free_setup", {})
+    if "setup" in memo:
+        return memo["setup"]
     m = problem.m
     step = 0.5 * problem.separation
     if problem.width * problem.height / step**2 > _MAX_GRID:
         return None  # a workspace this large is the lattice stage's
-    rm = build_free_roadmap(problem)
+    rm = build_free_roadmap(problem, deadline=deadline)
     if time.perf_counter() > deadline:
         return None
     goals = np.arange(m, 2 * m)
     field = rm.distances(goals)  # (goal, vertex)
     cost = field[:, :m].T  # (robot, goal)
-    if not np.isfinite(cost).any(axis=1).all():
+    out = None
+    if np.isfinite(cost).any(axis=1).all():
+        _, goal_of = linear_sum_assignment(np.where(np.isfinite(cost), cost**2, 1e12))
+        if np.isfinite(cost[np.arange(m), goal_of]).all():  # else a robot cannot reach its target
+            out = (rm, field, goal_of.tolist())
+    memo["setup"] = out
+    return out
+
+
+def free_roadmap_waypoints(problem: Problem, deadline: float, rng: np.random.Generator | None = None,
+                           max_steps: int | None = None, escapes: int = 60,
+                           router: str = "tswap") -> np.ndarray | None:
+    """Raw waypoints ``(K + 1, m, 2)`` from the start to the target along the free-space
+    roadmap, or ``None`` when routing stalls, a target is out of reach or the deadline passes.
+
+    ``router`` ``"tswap"``: the goal-swapping routing of the module docstring; a time step
+    in which nobody can move closer to a target becomes an *escape* step (with ``rng``; at
+    most ``escapes`` of them): robots, in random order, take a random clear edge, wherever
+    it leads, which unjams crowds that wait on each other.  ``"pibt"``: priority
+    inheritance, robots pushing each other out of the way (:mod:`planner.pibt`).  Either
+    routing that stalls, or goes ``100 + 2 m`` steps without bringing the robots closer to
+    their targets, is finished one robot at a time (:mod:`planner.endgame`) when it can."""
+    setup = free_roadmap_setup(problem, deadline)
+    if setup is None or time.perf_counter() > deadline:
         return None
-    big = 1e12
-    _, goal_of = linear_sum_assignment(np.where(np.isfinite(cost), cost**2, big))
-    if not np.isfinite(cost[np.arange(m), goal_of]).all():
-        return None  # a robot cannot reach the target it must take
-    goal_of = goal_of.tolist()
+    rm, field, goal_of = setup
+    m = problem.m
+    if max_steps is None:
+        max_steps = 40 * m + 400
+    if router == "pibt":
+        from .pibt import pibt_route
+
+        out = pibt_route(rm, field, goal_of, problem.separation, deadline,
+                         rng if rng is not None else np.random.default_rng(0), max_steps)
+        return None if out is None else np.asarray(out)
+    goal_of = list(goal_of)
+    goals = np.arange(m, 2 * m)
     pts = rm.points
     sep = problem.separation
     where = list(range(m))  # vertex of each robot
     pos = pts[:m].copy()
     frows = [field[g] for g in range(m)]
     goal_vert = goals.tolist()
-    if max_steps is None:
-        max_steps = 40 * m + 400
 
     def at_goal(i: int) -> bool:
         return where[i] == goal_vert[goal_of[i]]
@@ -180,7 +268,9 @@ def free_roadmap_waypoints(problem: Problem, deadline: float, rng: np.random.Gen
         return j if d[j] < sep else -1
 
     out = [pos.copy()]
-    stall = 0
+    stall = since = 0
+    best = np.inf
+    stale = 100 + 2 * m  # steps without a new lowest sum of roadmap lengths left
     for _ in range(max_steps):
         if time.perf_counter() > deadline:
             return None
@@ -241,8 +331,23 @@ def free_roadmap_waypoints(problem: Problem, deadline: float, rng: np.random.Gen
             pos = nxt
             out.append(pos.copy())
             stall = 0
+            left = sum(frows[goal_of[i]][where[i]] for i in range(m))
+            if left < best - 1e-9:
+                best, since = left, 0
+            else:
+                since += 1
+                if since > stale:
+                    break  # stepping around each other without getting anywhere
         else:
             stall += 1
             if stall > 3:
-                return None
-    return None
+                break
+    return _finish(rm, out, pos, where, sep, deadline)
+
+
+def _finish(rm: FreeRoadmap, out: list, pos: np.ndarray, where: list, sep: float, deadline: float):
+    """``out`` completed one robot at a time (:func:`planner.endgame.sequential_finish`)."""
+    from .endgame import sequential_finish
+
+    extra = sequential_finish(rm, pos, where, sep, deadline)
+    return None if extra is None else np.asarray(out + extra)

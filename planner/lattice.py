@@ -53,7 +53,7 @@ from scipy.spatial import cKDTree
 from .geometry import closest_approach
 from .problem import Problem
 
-__all__ = ["Lattice", "build_lattice", "lattice_spacing", "lattice_waypoints", "snap", "tswap"]
+__all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", "lattice_waypoints", "snap", "tswap"]
 
 _SLACK = 1.0 + 1e-6  # spacing over sqrt(2) * separation
 _MAX_VERTICES = 60_000
@@ -301,7 +301,7 @@ def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | 
     g = coo_matrix((np.ones(int(ok.sum())), (v[ok], w[ok])), shape=(lat.n, lat.n)).tocsr()
     dtype = np.int16 if lat.n < 30_000 else np.int32
     out = np.empty((len(sources), lat.n), dtype)
-    chunk = max(1, 4_000_000 // max(lat.n, 1))
+    chunk = max(1, min(128, 4_000_000 // max(lat.n, 1)))  # small chunks: the deadline is checked between
     for s in range(0, len(sources), chunk):
         if time.perf_counter() > deadline:
             return None
@@ -423,15 +423,21 @@ def lattice_waypoints(problem: Problem, deadline: float, spacing: float | None =
 
     Tries the spacings of :func:`_spacings`, each at four shifts of the lattice.
     """
+    return next(lattice_candidates(problem, deadline, spacing), None)
+
+
+def lattice_candidates(problem: Problem, deadline: float, spacing: float | None = None):
+    """Raw waypoints of every lattice that works, in the order of
+    :func:`lattice_waypoints` (a generator: the caller stops when one is short enough;
+    plans through different shifts of the lattice differ by up to 1.4x in makespan)."""
     tries = [spacing] if spacing is not None else _spacings(problem)
     for a in tries:
         for shift in ((0.0, 0.0), (0.5, 0.5), (0.5, 0.0), (0.0, 0.5)):
             if time.perf_counter() > deadline:
-                return None
+                return
             out = _through(problem, build_lattice(problem, a, shift), deadline)
             if out is not None:
-                return out
-    return None
+                yield out
 
 
 def _spacings(problem: Problem) -> list[float]:

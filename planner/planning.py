@@ -13,7 +13,7 @@ from .connect import sequenced_moves
 from .feasibility import feasibility
 from .freespace import free_roadmap_waypoints
 from .guide import Late
-from .lattice import lattice_waypoints
+from .lattice import lattice_candidates
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
@@ -31,7 +31,10 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     Returns ``(Plan, PlanStats)``; the plan has passed the exact validator
     (its minimum gap is at least the margin).  Raises :class:`NoPlanFound`,
     carrying the stats, when no plan is found within the limits.
-    ``rng`` is the run's one generator (default: seeded with 0).
+    ``rng`` is the run's one generator (default: seeded with 0).  A plan
+    found when the time limit has passed is returned without the makespan
+    and path-length lower bounds in its stats (NaN, and
+    ``stats.extra["lower_bounds"]`` says why) unless they were already known.
     """
     params = params or PlannerParams()
     if params.margin_extra:
@@ -108,7 +111,10 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     except PlanInvalid as exc:  # a bug, never an expected outcome
         raise AssertionError(f"planner produced an invalid plan: {exc}") from exc
     _fill_stats(stats, result, clearance.value)
-    stats.makespan_lower_bound_s, stats.path_length_lower_bound = lower_bounds(problem)
+    if time.perf_counter() <= deadline or "_lower_bounds" in problem.__dict__:
+        stats.makespan_lower_bound_s, stats.path_length_lower_bound = lower_bounds(problem)
+    else:  # about a second at 1000 robots: the time limit comes first (the stats keep NaN)
+        stats.extra["lower_bounds"] = "not computed: the time limit had passed"
     stats.planning_time_s = time.perf_counter() - t0
     result = Plan(result.radius, result.margin, result.durations, result.waypoints,
                   result.max_speed, result.max_accel, stats)
@@ -231,22 +237,23 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
     if not params.auto or _GOOD_ENOUGH[1] is None:
         return None
     out = _Direct()
-    bound = lower_bounds(problem)[0]
     end = _at_once(problem, problem.start, problem.target)
     if end is not None:
         one = np.stack([problem.start, end])
         out.offer("one step", 1, (one, 1, _makespan(problem, one)))
-        if out.best[2] <= _GOOD_ENOUGH[1] * bound:
+        if out.best[2] <= _GOOD_ENOUGH[1] * lower_bounds(problem)[0]:
             out.accepted = True
             return out
     if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
-        raw = lattice_waypoints(problem, deadline)
-        if raw is not None:
-            w = merge_steps(problem, _drop_idle(raw), deadline)
-            out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+        _lattice(problem, out, deadline)
+        if out.best is not None:
             # the one-at-a-time stages rarely beat it with this many robots
             out.accepted = True
             return out
+    # The bound costs about a second at 1000 robots: not before the lattice needs it.
+    if time.perf_counter() > deadline:
+        return out
+    bound = lower_bounds(problem)[0]
     if len(problem.obstacles) >= CLUTTER:  # the stage that works among many obstacles, first
         _free_space(problem, out, bound, deadline, rng)
         if out.accepted:
@@ -273,15 +280,39 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
     return out
 
 
+#: A lattice plan within this factor of the makespan bound ends the search over lattices.
+LATTICE_GOOD = 2.5
+
+
+def _lattice(problem: Problem, out: _Direct, deadline: float) -> None:
+    """Offer the shortest lattice plan (:mod:`planner.lattice`): after the first that
+    works, other shifts and spacings are tried while the best is over
+    :data:`LATTICE_GOOD` times the bound, the lattice has used less than 4.5 times what
+    the first took, and another such try would use under a quarter of the time left."""
+    t0 = time.perf_counter()
+    first = None
+    for raw in lattice_candidates(problem, deadline):
+        w = merge_steps(problem, _drop_idle(raw), deadline)
+        out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+        now = time.perf_counter()
+        first = first if first is not None else now - t0
+        # (the bound, about a second at 1000 robots, only when another try could follow)
+        if (now > deadline or now - t0 > 4.5 * first or first > 0.25 * (deadline - now)
+                or out.best[2] <= LATTICE_GOOD * lower_bounds(problem)[0]):
+            return
+
+
 def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, rng) -> None:
     """Offer the free-space roadmap's plan (:mod:`planner.freespace`), a few tries."""
     if "free-space roadmap" in out.legs:
         return
     raw = None
-    for _ in range(4):  # escapes are random: a stalled routing may pass on another try
+    # Escapes and ties are random: a stalled routing may pass on another try.  Goal
+    # swapping first (shorter plans), priority inheritance where it stalls.
+    for router in ("tswap", "tswap", "tswap", "pibt") * 3:
         if raw is not None or time.perf_counter() > deadline:
             break
-        raw = free_roadmap_waypoints(problem, deadline, rng)
+        raw = free_roadmap_waypoints(problem, deadline, rng, router=router)
     if raw is None:
         out.legs.setdefault("free-space roadmap", 0)
         return

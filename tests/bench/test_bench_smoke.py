@@ -191,3 +191,14 @@ def test_frontier_proves_the_pocket_and_plans_a_door():
     assert pocket["proven unsolvable"] == 1 and pocket["planned"] == 0 and pocket["proof max [s]"] < 1.0
     assert door["solved"] == "1/1" and door["makespan / bound (median)"] >= 1.0
     assert "no plan exists: the component around" in pocket["records"][0]["reason"]
+
+
+def test_frontier_time_limit_rows():
+    from bench import frontier
+
+    rows = frontier.limit_rows(names=("clutter-10-m20",), limits=(0.5,), seeds=1)
+    (row,) = rows
+    assert row["case"] == "clutter-10-m20" and row["runs"] == 1
+    assert row["bar [s]"] == pytest.approx(1.1 * 0.5 + 0.5)
+    assert row["within bar"] == ("yes" if row["max wall [s]"] <= row["bar [s]"] else "no")
+    assert row["within bar"] == "yes"
