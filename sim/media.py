@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import importlib.util
 import itertools
+import logging
 import math
 import os
 import secrets
@@ -338,35 +339,57 @@ class _Mp4Writer:
 
     def add(self, frame: np.ndarray) -> None:
         if self._gen is None:
-            import imageio_ffmpeg
+            from .outputs import signals_held
 
             h, w = frame.shape[:2]
             if h % 2 or w % 2:
                 raise ValueError(f"MP4 (yuv420p) frames need even height and width, got {(h, w)}")
-            # imageio-ffmpeg directly rather than through imageio's writer:
-            # that one is only closed by the garbage collector after an error,
-            # so ffmpeg could still be writing the temporary file after it has
-            # been removed.
-            self._gen = imageio_ffmpeg.write_frames(
-                str(self.path),
-                (w, h),
-                fps=self.fps,
-                codec="libx264",
-                pix_fmt_out="yuv420p",
-                quality=_MP4_QUALITY,
-                macro_block_size=1,
-                ffmpeg_log_level="fatal",  # an interrupted pipe is not worth a line of its own
-                output_params=["-preset", "veryfast", "-movflags", "+faststart"],
-            )
-            self._gen.send(None)
+            # ffmpeg starts with the signals held: an interrupt between its
+            # start and the generator's cleanup block would leave it running
+            # (and writing into a folder already removed).
+            with signals_held():
+                self._gen = self._start(w, h)
+                self._gen.send(None)
         self._gen.send(frame)
 
-    def close(self) -> None:
-        """Wait for ffmpeg to finish (also after an error); idempotent."""
+    def _start(self, w: int, h: int):
+        # imageio-ffmpeg directly rather than through imageio's writer: that
+        # one is only closed by the garbage collector after an error, so
+        # ffmpeg could still be writing the temporary file after it has been
+        # removed.
+        import imageio_ffmpeg
+
+        return imageio_ffmpeg.write_frames(
+            str(self.path),
+            (w, h),
+            fps=self.fps,
+            codec="libx264",
+            pix_fmt_out="yuv420p",
+            quality=_MP4_QUALITY,
+            macro_block_size=1,
+            ffmpeg_log_level="fatal",  # an interrupted pipe is not worth a line of its own
+            output_params=["-preset", "veryfast", "-movflags", "+faststart"],
+        )
+
+    def close(self, check: bool = True) -> None:
+        """Wait for ffmpeg to finish (also after an error); idempotent.
+
+        check: raise when ffmpeg wrote nothing.  Off on the error path, so
+        that an interrupt or an earlier error is what the caller sees, not
+        the empty file it left.
+        """
         if self._gen is not None:
             gen, self._gen = self._gen, None
-            gen.close()
-            if self.path.stat().st_size == 0:
+            # imageio-ffmpeg warns on stderr when it is closed before the
+            # first frame (an interrupt there): the check below says it instead.
+            log = logging.getLogger("imageio_ffmpeg")
+            level = log.level
+            log.setLevel(logging.ERROR)
+            try:
+                gen.close()
+            finally:
+                log.setLevel(level)
+            if check and self.path.stat().st_size == 0:
                 raise OSError(f"ffmpeg wrote nothing to {self.path}")
 
 
@@ -428,7 +451,7 @@ def _write(targets: dict[str, Path], frames, fps: float, colours, progress) -> N
             stream = iter(frames)
         if "mp4" in targets:
             mp4 = _Mp4Writer(stack.enter_context(atomic_path(targets["mp4"])), fps)
-            stack.callback(mp4.close)  # ffmpeg is waited for, also after an error
+            stack.callback(mp4.close, check=False)  # ffmpeg is waited for, also after an error
             writers.append(mp4)
         shape = None
         n = 0

@@ -28,6 +28,7 @@ import os
 import re
 import shutil
 import signal
+import threading
 import stat
 from contextlib import contextmanager
 from pathlib import Path
@@ -208,18 +209,32 @@ def _alive(pid: int) -> bool:
 
 
 @contextmanager
-def _signals_held():
-    """Hold SIGINT and SIGTERM back (main thread only) until the block ends."""
-    held = {signal.SIGINT, signal.SIGTERM}
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    except (AttributeError, ValueError, OSError):
+def signals_held():
+    """Hold SIGINT and SIGTERM back until the block ends, then act on them.
+
+    Python-level handlers that only note the signal (they run in the main
+    thread whatever thread the system delivers the signal to, unlike a
+    thread's signal mask); when the block ends the old handlers come back
+    and each noted signal is raised again (SIGINT: ``KeyboardInterrupt``).
+    Outside the main thread the block runs as it is.
+    """
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
+    noted: list[int] = []
+    old = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(sig)
+        if handler is None:  # installed outside Python: leave it alone
+            continue
+        old[sig] = signal.signal(sig, lambda signum, _frame: noted.append(signum))
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(noted):
+            signal.raise_signal(sig)
 
 
 # ----------------------------------------------------------------------------
@@ -301,7 +316,7 @@ class OutputSet:
         if self.staging is None or self.committed:
             raise RuntimeError("OutputSet.commit() outside its with-block or twice")
         done = []
-        with _signals_held():
+        with signals_held():
             for member in self.members:
                 staged, final = self.staging / member, self.final(member)
                 if staged.exists():

@@ -155,8 +155,8 @@ def test_interrupt_in_the_mp4_encoder_keeps_the_previous_run(tmp_path, monkeypat
 
     real = media._Mp4Writer.close
 
-    def broken(self):
-        real(self)  # the MP4 is complete in the staging folder ...
+    def broken(self, check=True):
+        real(self, check)  # the MP4 is complete in the staging folder ...
         raise failure("encoder stopped")  # ... and then the run is interrupted
 
     monkeypatch.setattr(media._Mp4Writer, "close", broken)
@@ -169,11 +169,16 @@ def test_interrupt_in_the_mp4_encoder_keeps_the_previous_run(tmp_path, monkeypat
 @needs_mp4
 def test_sigint_during_a_run_keeps_the_previous_run(tmp_path):
     """A real SIGINT once the staging folder exists: exit 130, the old set as it was."""
-    scen = _scenario(tmp_path, SMALL.replace("size: 64", "size: 480").replace("video_seconds: 2", "video_seconds: 30"))
+    scen = _scenario(tmp_path)
     out = tmp_path / "media"
     r = subprocess.run(SWARMFORM + ["run", str(scen), "--out", str(out)], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     old = _snapshot(out)
+    # The interrupted run has a long video to draw (about 20 s of work after its staging
+    # folder appears), so that the signal lands before its outputs are committed even
+    # when this process wakes late on a loaded machine.
+    _scenario(tmp_path, SMALL.replace("size: 64", "size: 480").replace("video_seconds: 2", "video_seconds: 120")
+              .replace("fps: 10", "fps: 20"))
     p = subprocess.Popen(SWARMFORM + ["run", str(scen), "--seed", "3", "--out", str(out)],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     staging = out / f".small.tmp-{p.pid}"
@@ -322,3 +327,32 @@ def test_internal_errors_are_exit_3_with_one_line(tmp_path, monkeypatch, capsys)
         assert main(argv + [str(scen), "--out", str(tmp_path / "o"), "--no-render"]) == 3
         err = capsys.readouterr().err
         assert "Traceback" in err and "ZeroDivisionError" in err
+
+
+def test_signals_held_defer_an_interrupt_to_the_end_of_the_block():
+    import threading
+
+    from sim.outputs import signals_held
+
+    steps = []
+    with pytest.raises(KeyboardInterrupt):
+        with signals_held():
+            signal.raise_signal(signal.SIGINT)
+            steps.append("after the signal")  # the block goes on
+    assert steps == ["after the signal"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    # Negative control: without the block the interrupt cuts in at once.
+    with pytest.raises(KeyboardInterrupt):
+        signal.raise_signal(signal.SIGINT)
+        steps.append("never")
+    assert steps == ["after the signal"]
+    # A signal the system delivers while another thread runs is held as well.
+    t = threading.Thread(target=lambda: None)
+    t.start()
+    with pytest.raises(KeyboardInterrupt):
+        with signals_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+            steps.append("held")
+    t.join()
+    assert steps[-1] == "held"
