@@ -1,0 +1,222 @@
+"""Mutation testing of the modules that carry the verdict, one module at a time.
+
+    python tests/mutation/mutate.py validate            # mutate, test, summarise, clean up
+    python tests/mutation/mutate.py validate --keep     # keep mutants/ to inspect survivors
+    python tests/mutation/mutate.py validate --show     # summarise a kept run, with diffs
+    python tests/mutation/mutate.py --list              # the modules and their tests
+
+It drives mutmut 3 (``pip install -e '.[mutation]'``) from the repository root. mutmut
+copies ``planner/`` and ``sim/`` into ``mutants/``, rewrites one module so that every
+mutant can be switched on at run time, records which tests call which function, and then
+runs, for each mutant, only the tests that call the mutated function. Here each module is
+mutated alone, against only the test files listed for it below, so one module takes
+minutes. One worker process: run it under a memory limit, e.g.
+
+    prlimit --as=4000000000 timeout 3h python tests/mutation/mutate.py geometry
+
+Exit status: 0 when at least 95 % of the mutants that are not listed as equivalent in
+``tests/mutation/EQUIVALENT.md`` are killed (a timeout counts as killed), 1 otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+EQUIVALENT = HERE / "EQUIVALENT.md"
+GOAL = 0.95
+
+# module -> (file to mutate, test files that pin its behaviour)
+MODULES: dict[str, tuple[str, list[str]]] = {
+    "validate": (
+        "planner/validate.py",
+        [
+            "tests/planner/test_validate.py",
+            "tests/planner/test_margin_extra.py",
+            "tests/planner/test_validate_pins.py",
+        ],
+    ),
+    "geometry": (
+        "planner/geometry.py",
+        [
+            "tests/planner/test_geometry.py",
+            "tests/planner/test_geometry_fast.py",
+            "tests/planner/test_geometry_pins.py",
+            "tests/planner/test_validate.py",
+            "tests/sim/test_contacts.py",
+        ],
+    ),
+    "contacts": (
+        "sim/contacts.py",
+        [
+            "tests/sim/test_contacts.py",
+            "tests/sim/test_contacts_pins.py",
+            "tests/sim/test_verdict.py",
+        ],
+    ),
+    "physics": (
+        "sim/physics.py",
+        [
+            "tests/sim/test_execute.py",
+            "tests/sim/test_verdict.py",
+            "tests/sim/test_control.py",
+            "tests/sim/test_realism.py",
+            "tests/sim/test_physics_pins.py",
+        ],
+    ),
+    "scenario": (
+        "sim/scenario.py",
+        [
+            "tests/sim/test_scenario.py",
+            "tests/sim/test_input_contract.py",
+            "tests/sim/test_scenario_realism.py",
+            "tests/sim/test_scenario_pins.py",
+        ],
+    ),
+    "inputfile": (
+        "planner/inputfile.py",
+        [
+            "tests/sim/test_input_contract.py",
+            "tests/sim/test_input_fuzz.py",
+            "tests/sim/test_inputfile_pins.py",
+        ],
+    ),
+    "yamlfile": (
+        "sim/yamlfile.py",
+        [
+            "tests/sim/test_input_contract.py",
+            "tests/sim/test_input_fuzz.py",
+            "tests/sim/test_yamlfile_pins.py",
+        ],
+    ),
+}
+
+_STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 36: "timeout",
+           24: "timeout", -24: "timeout", 152: "timeout", 255: "timeout", None: "not checked"}
+
+
+def equivalent_ids(module_file: str) -> set[str]:
+    """Mutant names listed in EQUIVALENT.md for one file (rows ``| file | name | why |``)."""
+    if not EQUIVALENT.exists():
+        return set()
+    names = set()
+    for line in EQUIVALENT.read_text().splitlines():
+        cells = [c.strip().strip("`") for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 3 and cells[0] == module_file:
+            names.add(cells[1])
+    return names
+
+
+def summarise(module: str, show: bool) -> dict:
+    module_file, _ = MODULES[module]
+    meta = ROOT / "mutants" / (module_file + ".meta")
+    if not meta.exists():
+        raise SystemExit(f"no results for {module_file}: run it first (with --keep to inspect)")
+    codes = json.loads(meta.read_text())["exit_code_by_key"]
+    equivalent = equivalent_ids(module_file)
+    unknown = sorted(equivalent - set(codes))
+    counts = {"killed": 0, "timeout": 0, "survived": 0, "equivalent": 0, "no tests": 0, "other": 0}
+    survivors = []
+    for name, code in sorted(codes.items()):
+        status = _STATUS.get(code, "other")
+        if status in ("survived", "no tests") and name in equivalent:
+            status = "equivalent"
+        elif status in ("survived", "no tests"):
+            survivors.append(name)
+        counts[status if status in counts else "other"] += 1
+    counts["total"] = len(codes)
+    live = counts["total"] - counts["equivalent"]
+    counts["kill_rate"] = (counts["killed"] + counts["timeout"]) / live if live else 1.0
+    print(f"{module_file}: {counts['total']} mutants, {counts['killed']} killed, "
+          f"{counts['timeout']} timed out, {counts['survived']} survived, "
+          f"{counts['no tests']} not reached by any test, {counts['equivalent']} equivalent, "
+          f"{counts['other']} other; kill rate {100 * counts['kill_rate']:.1f} % of non-equivalent")
+    if unknown:
+        print(f"  EQUIVALENT.md names mutants that were not generated: {', '.join(unknown)}")
+    for name in survivors:
+        print(f"  survived: {name}")
+        if show:
+            print(_diff(name))
+    return counts
+
+
+def _diff(name: str) -> str:
+    from mutmut.mutation.diff_apply import find_mutant, get_diff_for_mutant
+
+    return get_diff_for_mutant(name, path=find_mutant(name).path)
+
+
+def run(module: str, keep: bool, names: list[str]) -> dict:
+    module_file, tests = MODULES[module]
+    tests = [t for t in tests if (ROOT / t).exists()]
+    os.chdir(ROOT)
+    if not names and (ROOT / "mutants").exists():
+        shutil.rmtree(ROOT / "mutants")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+    from mutmut import configuration
+    from mutmut.__main__ import cli
+
+    base = configuration._load_config()
+    # mutmut copies tests/ following symbolic links; the bad-input corpus holds a link to
+    # /dev/zero, so copy tests/ here with the links kept as links, and let mutmut skip it.
+    shutil.copytree(ROOT / "tests", ROOT / "mutants" / "tests", symlinks=True, dirs_exist_ok=True,
+                    ignore=shutil.ignore_patterns("__pycache__", ".hypothesis"))
+    configuration._config = dataclasses.replace(
+        base,
+        also_copy=[p for p in base.also_copy if p.parts[:1] != ("tests",)],
+        only_mutate=[module_file],
+        pytest_add_cli_args_test_selection=tests,
+    )
+    start = time.monotonic()
+    try:
+        cli(["run", "--max-children", "1", *names], standalone_mode=False)
+    except SystemExit as exc:  # mutmut exits 1 when the clean run fails
+        if exc.code:
+            raise
+    wall = time.monotonic() - start
+    counts = summarise(module, show=False)
+    counts["wall_s"] = round(wall)
+    print(f"  wall time {wall / 60:.1f} min")
+    if not keep:
+        shutil.rmtree(ROOT / "mutants", ignore_errors=True)
+    return counts
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("module", nargs="?", choices=sorted(MODULES))
+    parser.add_argument("mutants", nargs="*", help="re-run only these mutants of a kept run")
+    parser.add_argument("--keep", action="store_true", help="keep mutants/ for inspection")
+    parser.add_argument("--show", action="store_true", help="summarise a kept run, with diffs")
+    parser.add_argument("--list", action="store_true", help="list the modules and their tests")
+    parser.add_argument("--json", type=Path, help="append the counts as one JSON line here")
+    args = parser.parse_args(argv)
+    if args.list or not args.module:
+        for name, (path, tests) in MODULES.items():
+            print(f"{name:10} {path:22} {' '.join(tests)}")
+        return 0
+    if args.show:
+        os.chdir(ROOT)
+        counts = summarise(args.module, show=True)
+    else:
+        counts = run(args.module, keep=args.keep or bool(args.mutants), names=args.mutants)
+    if args.json:
+        with args.json.open("a") as f:
+            f.write(json.dumps({"module": args.module, **counts}) + "\n")
+    return 0 if counts["kill_rate"] >= GOAL else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
