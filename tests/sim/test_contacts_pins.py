@@ -91,7 +91,6 @@ def test_one_episode_per_pair_however_many_pieces_it_touches():
     w._begin(_arbiter(s, "r0", "o0a", -0.01), None, None)
     w._separate(b, None, None)
     w._separate(a, None, None)  # now closed
-    w._separate(a, None, None)  # a stray separate does nothing
     w.now = 3.0
     w._begin(_arbiter(s, "r0", "o0a", -0.02), None, None)  # a new episode
     w._begin(_arbiter(s, "wall", "r1", -0.4), None, None)
@@ -104,6 +103,16 @@ def test_one_episode_per_pair_however_many_pieces_it_touches():
         {"time": 3.0, "kind": "robot-robot", "a": 1, "b": 2, "depth": 0.0, "witness": "pymunk"},
     ]
     assert all(type(c.time) is float and type(c.a) is int and type(c.depth) is float for c in w.contacts())
+
+
+def test_a_stray_separate_does_nothing():
+    world, s = _world()
+    w = PymunkWitness(world)
+    w._separate(_arbiter(s, "r0", "r1"), None, None)
+    w._begin(_arbiter(s, "r0", "o1", -0.1), None, None)
+    w._separate(_arbiter(s, "r0", "r1"), None, None)
+    w._begin(_arbiter(s, "r0", "o1", -0.2), None, None)  # still the open episode
+    assert [(c.kind, c.depth) for c in w.contacts()] == [("robot-obstacle", 0.2)]
 
 
 def test_a_later_begin_keeps_a_deeper_depth():
@@ -309,3 +318,90 @@ def test_verlet_blocks_cover_every_sample():
     assert contact.time == pytest.approx(3.7) and contact.depth == pytest.approx(0.1)
     assert m.min_time == pytest.approx(3.7)
     assert m.series[37] == pytest.approx(-0.1) and m.series[36] == pytest.approx(SERIES_CAP * 0.5)
+
+
+def test_every_polygon_is_measured_after_one_that_is_far():
+    far = Polygon(np.array([[8.0, 8.0], [9.0, 8.0], [9.0, 9.0]]))
+    near = Polygon(np.array([[2.0, 1.0], [4.0, 1.0], [4.0, 3.0]]))
+    problem = _problem([[5, 5]], (far, near))
+    pts = np.array([[3.5, 2.0], [1.0, 2.0]])
+    low = static_clearances(problem.env, pts, 2, below=1.5)
+    assert low[:, 1] == pytest.approx([-np.sqrt(0.125), np.sqrt(2)])
+    assert (low[:, 0] >= 1.5).all()
+
+
+def test_ties_keep_the_first_sample_and_the_static_gap():
+    # the same wall gap in samples 1 and 3: the first is the minimum's time
+    m = GapMonitor(_problem([[5, 5]]))
+    xs = [5.0, 0.75, 5.0, 0.75]
+    m.observe(np.arange(4.0), np.c_[xs, np.full(4, 5.0)][:, None, :])
+    assert m.min_time == 1.0
+    m.observe([4.0], np.array([[[0.75, 5.0]]]))
+    assert m.min_time == 1.0
+    # a wall gap equal to a pair gap: the wall (found first) is kept
+    pos = np.array([[[1.0, 5.0], [5.0, 5.0], [6.5, 5.0]]])
+    m = GapMonitor(_problem(pos[0]))
+    m.observe([0.0], pos)
+    assert m.min_gap == 0.5 and (m.min_kind, m.min_pair) == (ROBOT_WALL, (0, -1))
+
+
+def test_exact_touching_is_not_an_overlap_while_another_pair_overlaps():
+    # robots 0-1 overlap; robots 2-3 touch exactly; robot 4 touches the wall exactly, robot 5 overlaps it
+    pos = np.array([[[2.0, 2.0], [2.9, 2.0], [5.0, 5.0], [6.0, 5.0], [0.5, 8.0], [9.6, 8.0]]])
+    m = GapMonitor(_problem(pos[0]))
+    m.observe([0.0], pos)
+    got = sorted((c.kind, c.a, c.b) for c in m.contacts())
+    assert got == [(ROBOT_ROBOT, 0, 1), (ROBOT_WALL, 5, -1)]
+
+
+def test_exact_touching_in_the_nearest_neighbour_search():
+    grid = np.stack(np.meshgrid(np.arange(10) * 4.0 + 2, np.arange(10) * 4.0 + 2), -1).reshape(-1, 2)
+    pos = grid[None].copy()
+    pos[0, 31] = pos[0, 30] + [0.5, 0.0]  # overlaps robot 30
+    pos[0, 71] = pos[0, 70] + [1.0, 0.0]  # touches robot 70 exactly
+    problem = _problem(grid, size=42.0)
+    _, _, touching, _ = GapMonitor(problem)._pairs_block(pos, np.inf)
+    assert [(s, i, j) for s, i, j, _ in touching] == [(0, 30, 31)]
+
+
+def test_nearest_neighbour_ties_keep_the_first_sample():
+    grid = np.stack(np.meshgrid(np.arange(10) * 4.0 + 2, np.arange(10) * 4.0 + 2), -1).reshape(-1, 2)
+    pos = np.repeat(grid[None], 3, axis=0)
+    pos[1, 31] = pos[1, 30] + [0.5, 0.0]
+    pos[2, 31] = pos[2, 30] + [0.5, 0.0]
+    _, where, _, _ = GapMonitor(_problem(grid, size=42.0))._pairs_block(pos, np.inf)
+    assert where == (1, 30, 31)
+
+
+def test_pair_gaps_with_a_radius_other_than_a_half():
+    pos = np.array([[[3.0, 5.0], [4.5, 5.0]]])
+    m = GapMonitor(_problem(pos[0], radius=1.0))
+    m.observe([0.0], pos)
+    [c] = m.contacts()
+    assert (c.kind, c.a, c.b) == (ROBOT_ROBOT, 0, 1) and c.depth == pytest.approx(0.5)
+
+
+def test_pairs_beyond_the_cap_still_give_the_minimum():
+    # two robots 1.5 apart (more than the cap of 1), far from the walls
+    pos = np.array([[[50.0, 50.0], [52.5, 50.0]]])
+    m = GapMonitor(_problem(pos[0], size=100.0))
+    m.observe([0.0], pos)
+    assert m.min_gap == pytest.approx(1.5) and m.min_kind == ROBOT_ROBOT
+
+
+def test_series_is_exact_below_the_cap_after_a_smaller_minimum():
+    # first a wall gap of 0.1; then two robots at gap 0.5 in the middle of the room
+    m = GapMonitor(_problem([[0.6, 5.0], [8.0, 8.0]], size=20.0))
+    m.observe([0.0], np.array([[[0.6, 5.0], [8.0, 8.0]]]))
+    m.observe([1.0], np.array([[[10.0, 10.0], [11.5, 10.0]]]))
+    assert m.series == pytest.approx([0.1, 0.5])
+
+
+def test_series_is_exact_for_a_polygon_whose_box_is_nearer():
+    # a triangle whose bounding box is nearer than its edges, in the second sample only
+    tri = Polygon(np.array([[10.0, 10.0], [14.0, 10.0], [14.0, 14.0]]))
+    m = GapMonitor(_problem([[0.6, 5.0]], (tri,), size=30.0))
+    m.observe([0.0, 1.0], np.array([[[0.6, 5.0]], [[10.0, 10.0 + 0.7 * np.sqrt(2) * 2]]]))
+    exact = static_clearances(m.env, np.array([[10.0, 10.0 + 1.4 * np.sqrt(2)]]), 1)[0, 0] - 0.5
+    assert exact < SERIES_CAP * 0.5
+    assert m.series == pytest.approx([0.1, exact])

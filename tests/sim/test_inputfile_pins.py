@@ -231,3 +231,24 @@ def test_os_reason_is_the_system_message_or_the_class():
     assert _os_reason(OSError(errno.EACCES, "x")) == "Permission denied"
     assert _os_reason(OSError("no errno")) == "OSError"
     assert _os_reason(PermissionError(99999, "x")) == "PermissionError"
+
+
+def test_a_short_string_whose_repr_grows_past_the_limit_is_cut():
+    # 73 characters fit whole; one of them a newline makes the repr 76 long
+    assert echo("a" * 72 + "\n") == "string 'aaaaaaaaaaaaaaaaaa...' (73 characters)"
+    assert echo("a" * 71 + "\n") == "string '" + "a" * 71 + "\\n'"
+
+
+def test_a_file_that_grows_while_it_is_read_is_refused(tmp_path, monkeypatch):
+    # the size checks see 8 bytes; the reads find 12, a few bytes at a time
+    f = tmp_path / "grows.yaml"
+    f.write_text("x" * 8)
+    small = os.stat(f)
+    f.write_text("x" * 12)
+    real_read = os.read
+    monkeypatch.setattr(os, "stat", lambda *a, **k: small)
+    monkeypatch.setattr(os, "fstat", lambda *a, **k: small)
+    monkeypatch.setattr(os, "read", lambda fd, n: real_read(fd, min(n, 3)))
+    with pytest.raises(UnreadableFile, match=r"^is larger than the 9 bytes an input file may have$"):
+        read_text(f, 9)
+    assert read_text(f, 12) == "x" * 12
