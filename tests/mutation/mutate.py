@@ -53,11 +53,9 @@ MODULES: dict[str, tuple[str, list[str]]] = {
     "geometry": (
         "planner/geometry.py",
         [
-            "tests/planner/test_geometry.py",
-            "tests/planner/test_geometry_fast.py",
             "tests/planner/test_geometry_pins.py",
-            "tests/planner/test_validate.py",
-            "tests/sim/test_contacts.py",
+            "tests/planner/test_geometry_fast.py",
+            "--deselect=tests/planner/test_geometry_fast.py::test_indexed_kernels_match_the_dense_ones_in_clutter",
         ],
     ),
     "contacts": (
@@ -86,12 +84,8 @@ MODULES: dict[str, tuple[str, list[str]]] = {
     "scenario": (
         "sim/scenario.py",
         [
-            "tests/sim/test_scenario.py",
-            "tests/sim/test_input_contract.py",
-            "tests/sim/test_scenario_realism.py",
             "tests/sim/test_scenario_pins.py",
-            # subprocesses under other hash seeds, 5 s a run
-            "--deselect=tests/sim/test_scenario.py::test_build_does_not_depend_on_the_hash_seed",
+            "tests/sim/test_input_contract.py",
         ],
     ),
     "inputfile": (
@@ -119,6 +113,14 @@ SCOPE: dict[str, list[str]] = {
     # brings in that function's tests for mutmut's first, clean run)
     "physics": ["x__check*", "x__execute__mutmut_*", "x_execute*", "x__report*", "x__reached*", "x__filled*",
                 "x__finite*", "xǁSimReportǁ*"],
+    # the kernels of the exact validator and the contact monitor; not the planner's
+    # pruned tests (segments_clear, points_clear, greedy_separated and their indexes)
+    "geometry": ["x_point_segment_distance*", "x__orient*", "x__crossing*", "x_segment_segment_distance*",
+                 "x_closest_approach*", "x_points_in_polygon*", "x__fold_min*", "xǁEnvironmentǁwall_clearance*",
+                 "xǁEnvironmentǁpoint_clearance*", "xǁEnvironmentǁsegment_clearance*", "xǁEnvironmentǁ_inside*"],
+    # the field checks every value goes through, and the file's first reading
+    "scenario": ["xǁ_Readerǁ*", "x__span*", "x__bound*", "x__numeric_text_hint*", "x__kind*",
+                 "x_read_scenario*"],
 }
 
 
