@@ -16,8 +16,8 @@ import pytest
 from planner.plan import Plan
 from planner.problem import Problem
 from sim.contacts import Contact
-from sim.params import Failure, Impulse, SimParams
-from sim.physics import SimReport, _check, _filled, _reached, execute
+from sim.params import Failure, Impulse, Noise, SimParams
+from sim.physics import SimReport, _check, _filled, _reached, _report as build_report, execute
 from sim.realism import Disturbance, phase_margin
 
 
@@ -100,18 +100,18 @@ def test_targets_filled_is_reported_only_when_short():
 def test_report_dict():
     dist = (Disturbance("impulse", 0, 0.5, (1.0, 2.0)), Disturbance("push", 1, 0.7, (0.0, 1.0)),
             Disturbance("failure", 1, 0.9), Disturbance("push", 0, 1.1, (1.0, 0.0)))
-    r = _report(contacts=(C1, C2), min_clearance=-0.02, min_clearance_kind="robot-robot", min_clearance_pair=(0, 1),
+    r = _report(contacts=(C1, C2, C1), min_clearance=-0.02, min_clearance_kind="robot-robot", min_clearance_pair=(0, 1),
                 max_tracking_error_time=0.25, max_tracking_error_robot=1, masses=np.array([0.9, 1.1]),
                 failed=(1,), disturbances=dist, stopped="", targets_filled=2, phase_margin_deg=float("inf"),
                 min_clearance_time=float("nan"))
     d = r.to_dict()
     assert d["ok"] is False
-    assert (d["contacts"], d["contacts_pymunk"], d["contacts_monitor"]) == (2, 1, 1)
+    assert (d["contacts"], d["contacts_pymunk"], d["contacts_monitor"]) == (3, 2, 1)
     assert d["min_clearance"] == -0.02 and d["min_clearance_time"] is None
     assert d["min_clearance_kind"] == "robot-robot" and d["min_clearance_pair"] == [0, 1]
     assert d["max_tracking_error"] == 0.01 and d["reached"] is True and d["final_error"] == 0.001
     assert (d["sim_time_s"], d["wall_time_s"], d["realtime_factor"]) == (4.0, 2.0, 2.0)
-    assert d["contact_list"] == [C1.to_dict(), C2.to_dict()]
+    assert d["contact_list"] == [C1.to_dict(), C2.to_dict(), C1.to_dict()]
     assert "contact_list_truncated" not in d
     assert d["first_contact"] == C1.to_dict()
     assert (d["max_tracking_error_time"], d["max_tracking_error_robot"]) == (0.25, 1)
@@ -128,6 +128,7 @@ def test_report_dict():
     assert clean["first_contact"] is None and "mass_range" not in clean and "reached_robots" not in clean
     assert clean["stopped"] == "why" and clean["realtime_factor"] == 2.0
     assert _report(wall_time_s=0.0).to_dict()["realtime_factor"] is None
+    assert _report(phase_margin_deg=42.5).to_dict()["phase_margin_deg"] == 42.5
 
 
 def test_long_lists_are_cut_at_a_thousand():
@@ -146,6 +147,9 @@ def test_series_needs_both_arrays():
     assert _report(min_gap=np.zeros(1)).series() is None
     s = _report(times=np.arange(3.0), min_gap=np.ones(3), tracking_error=np.zeros((3, 2))).series()
     assert s["times"] == pytest.approx([0, 1, 2]) and s["min_gap"] == pytest.approx([1, 1, 1])
+    long = _report(times=np.arange(3000.0), min_gap=np.ones(3000), tracking_error=np.zeros((3000, 2)))
+    assert 1000 < len(long.series()["times"]) <= 2000
+    assert len(long.series(max_samples=10)["times"]) <= 11
 
 
 # -- input checks ---------------------------------------------------------------------------
@@ -218,6 +222,7 @@ def test_reached_matches_robots_to_targets_within_the_tolerance_inclusive():
     target = np.array([[4.0, 0.5], [0.0, 0.25], [9.0, 9.0]])
     ok, worst, per = _reached(final, target, 0.5, np.ones(3, bool))
     assert (ok, worst, per.tolist()) == (True, 0.5, [True, True, True])
+    assert per.dtype == bool
     ok, worst, per = _reached(final, target, 0.3, np.ones(3, bool))
     assert (ok, worst, per.tolist()) == (False, 0.5, [True, False, True])
     # a failed robot is neither matched nor counted
@@ -302,3 +307,82 @@ def test_a_push_moves_only_the_pushed_robot_until_its_controller_pulls_it_back()
     assert r.max_tracking_error_robot == 1 and r.tracking_error[:, 1].max() > 0.005
     assert r.max_tracking_error_time > 0.2
     assert r.to_dict()["disturbances"]["impulses"] == 1
+
+
+class _Fake:
+    def __init__(self, contacts, **kw):
+        self._contacts = contacts
+        self.__dict__.update(kw)
+
+    def contacts(self):
+        return list(self._contacts)
+
+
+def _built(contacts_pymunk=(), contacts_monitor=(), tracking=None, **kw):
+    times = np.arange(3) * 0.5
+    pos = np.zeros((3, 2, 2))
+    tracking = np.array([[0.0, 0.1], [0.3, 0.2], [0.1, 0.0]]) if tracking is None else tracking
+    monitor = _Fake(contacts_monitor, series=np.zeros(3), min_gap=0.25, min_time=0.5, min_kind="robot-wall",
+                    min_pair=(1, -1))
+    args = dict(sim_time=1.0, wall0=0.0, step_time=0.0, masses=np.ones(2), failed=(), disturbances=(),
+                replans=(), stopped="", targets_filled=2, phase_margin_deg=50.0)
+    args.update(kw)
+    return build_report(_Fake(contacts_pymunk), monitor, times, pos, tracking, True, 0.0, np.ones(2, bool), **args)
+
+
+def test_the_report_sorts_contacts_pymunk_first_at_equal_times():
+    p = Contact(1.0, "robot-wall", 1, -1, 0.1, "pymunk")
+    q = Contact(1.0, "robot-wall", 1, -1, 0.1, "monitor")
+    e = Contact(0.5, "robot-robot", 0, 1, 0.1, "monitor")
+    r = _built([p], [q, e])
+    assert [c.witness for c in r.contacts] == ["monitor", "pymunk", "monitor"]
+    assert r.contacts[0] is e
+
+
+def test_the_report_carries_the_monitor_and_the_worst_tracking():
+    r = _built(stopped="why", replans=("one",), failed=(1,))
+    assert (r.min_clearance, r.min_clearance_time, r.min_clearance_kind, r.min_clearance_pair) == (0.25, 0.5, "robot-wall", (1, -1))
+    assert (r.max_tracking_error, r.max_tracking_error_time, r.max_tracking_error_robot) == (0.3, 0.5, 0)
+    assert r.stopped == "why" and r.replans == ("one",) and r.failed == (1,)
+    # every robot failed: no tracking error at all
+    r = _built(tracking=np.full((3, 2), np.nan))
+    assert r.max_tracking_error == 0.0 and math.isnan(r.max_tracking_error_time) and r.max_tracking_error_robot == -1
+
+
+def test_wall_and_step_times_are_measured(monkeypatch):
+    import time
+
+    clock = iter(np.arange(1_000_000) * 1.0)
+    monkeypatch.setattr(time, "perf_counter", lambda: float(next(clock)))
+    start = np.array([[2.0, 2.0]])
+    problem = Problem(10, 10, (), 0.5, 0.1, start, start)
+    plan = Plan(0.5, 0.1, np.zeros(0), start[None])
+    r = execute(problem, plan, SimParams(dt=0.1, substeps=3, settle_time=0.5))
+    # one clock tick inside each of the 5 x 3 physics steps
+    assert r.step_time_s == 15.0
+    assert 15.0 < r.wall_time_s < 100.0
+
+
+def test_the_realistic_loop_reports_progress_and_uses_the_runs_generator():
+    start = np.array([[3.0, 5.0], [7.0, 5.0]])
+    problem = Problem(10, 10, (), 0.5, 0.1, start, start)
+    plan = Plan(0.5, 0.1, np.zeros(0), start[None])
+    params = SimParams(settle_time=0.5, noise=Noise(position=0.01))
+    seen = []
+    a = execute(problem, plan, params, progress=seen.append)
+    assert seen and seen[-1] == 1.0 and seen == sorted(seen)
+    b = execute(problem, plan, params, np.random.default_rng(0))
+    c = execute(problem, plan, params, np.random.default_rng(1))
+    assert np.array_equal(a.positions, b.positions)
+    assert not np.array_equal(b.positions, c.positions)
+
+
+def test_pymunk_stamps_a_contact_within_the_control_step_that_shows_it():
+    start = np.array([[5.0, 5.0]])
+    target = np.array([[9.7, 5.0]])
+    problem = Problem(10, 10, (), 0.5, 0.1, start, target)
+    plan = Plan(0.5, 0.1, np.array([1.0]), np.array([start, target]))
+    r = execute(problem, plan, SimParams(settle_time=0.2))
+    first = {w: min(c.time for c in r.contacts if c.witness == w) for w in ("pymunk", "monitor")}
+    dt = SimParams().dt
+    assert first["monitor"] - dt - 1e-9 <= first["pymunk"] <= first["monitor"] + 1e-9
