@@ -12,7 +12,14 @@ import pytest
 
 from sim.scenario import ScenarioError, _numeric_text_hint, _Reader, _span
 
-R = _Reader("s.yaml")
+class _R:
+    """A fresh reader per use (a reader made at import would escape mutation testing)."""
+
+    def __getattr__(self, name):
+        return getattr(_Reader("s.yaml"), name)
+
+
+R = _R()
 
 
 def refused(fn, *args, **kwargs) -> str:
@@ -71,7 +78,8 @@ def test_number_bounds_are_exact():
     assert refused(R.number, math.inf, "f", gt=0) == "s.yaml: f: must be a finite number > 0, got inf"
     assert refused(R.number, math.nan, "f") == "s.yaml: f: must be a finite number, got nan"
     assert refused(R.number, 2**1001, "f") == "s.yaml: f: must be a number, got an integer of about 302 digits"
-    assert R.number(2**999, "f") == float(2**999)
+    assert R.number(2**999, "f") == float(2**999)  # 1000 bits
+    assert refused(R.number, 2**1000, "f") == "s.yaml: f: must be a number, got an integer of about 302 digits"
 
 
 def test_integer_bounds_are_exact():
@@ -100,6 +108,24 @@ def test_boolean_pair_and_inside():
     assert refused(R.pair, [1, -1], "p", ge=0) == "s.yaml: p[1]: must be a number >= 0, got -1"
     assert refused(R.pair, [-1, 1], "p", ge=0) == "s.yaml: p[0]: must be a number >= 0, got -1"
     assert R.inside([0, 0], "q", 10, 5) == (0.0, 0.0) and R.inside([10, 5], "q", 10, 5) == (10.0, 5.0)
+    assert refused(R.inside, [1, 2, 3], "q", 10, 5) == "s.yaml: q: must be a pair [x, y], got a list of 3"
+    assert refused(R.inside, [1, "a"], "q", 10, 5) == "s.yaml: q[1]: must be a number, got string 'a'"
     for bad in ([10.5, 1], [1, 5.5], [-0.5, 1], [1, -0.5]):
         msg = refused(R.inside, bad, "q", 10, 5)
         assert msg == f"s.yaml: q: ({bad[0]:g}, {bad[1]:g}) lies outside the 10 x 5 workspace"
+
+
+def test_overrides_are_applied_and_blamed(tmp_path):
+    from pathlib import Path
+
+    from sim.scenario import read_scenario
+
+    src = Path(__file__).resolve().parents[2] / "scenarios"
+    path = sorted(src.rglob("*.yaml"))[0]
+    base = read_scenario(path)
+    moved = read_scenario(path, {"robots.margin": 0.25})
+    assert moved.margin == 0.25 != base.margin and moved.path == base.path == str(path)
+    assert read_scenario(str(path), {}).margin == base.margin
+    with pytest.raises(ScenarioError) as e:
+        read_scenario(path, {"robots.margin": -1.0})
+    assert str(e.value) == "--set robots.margin: must be a number in [0, 100], got -1"
