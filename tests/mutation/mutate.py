@@ -10,7 +10,9 @@ copies ``planner/`` and ``sim/`` into ``mutants/``, rewrites one module so that 
 mutant can be switched on at run time, records which tests call which function, and then
 runs, for each mutant, only the tests that call the mutated function. Here each module is
 mutated alone, against only the test files listed for it below, so one module takes
-minutes. One worker process: run it under a memory limit, e.g.
+minutes (modules too slow for that are mutated in a scope of functions, see SCOPE). The
+surviving mutants, with their diffs, go to ``mutation-report/MODULE.txt``. One worker
+process: run it under a memory limit, e.g.
 
     prlimit --as=4000000000 timeout 3h python tests/mutation/mutate.py geometry
 
