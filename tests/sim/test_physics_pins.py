@@ -150,6 +150,8 @@ def test_series_needs_both_arrays():
     long = _report(times=np.arange(3000.0), min_gap=np.ones(3000), tracking_error=np.zeros((3000, 2)))
     assert 1000 < len(long.series()["times"]) <= 2000
     assert len(long.series(max_samples=10)["times"]) <= 11
+    edge = _report(times=np.arange(2001.0), min_gap=np.ones(2001), tracking_error=np.zeros((2001, 2)))
+    assert len(edge.series()["times"]) <= 2000
 
 
 # -- input checks ---------------------------------------------------------------------------
@@ -332,7 +334,7 @@ def _built(contacts_pymunk=(), contacts_monitor=(), tracking=None, **kw):
 
 def test_the_report_sorts_contacts_pymunk_first_at_equal_times():
     p = Contact(1.0, "robot-wall", 1, -1, 0.1, "pymunk")
-    q = Contact(1.0, "robot-wall", 1, -1, 0.1, "monitor")
+    q = Contact(1.0, "robot-obstacle", 1, 0, 0.1, "monitor")
     e = Contact(0.5, "robot-robot", 0, 1, 0.1, "monitor")
     r = _built([p], [q, e])
     assert [c.witness for c in r.contacts] == ["monitor", "pymunk", "monitor"]
@@ -352,7 +354,7 @@ def test_the_report_carries_the_monitor_and_the_worst_tracking():
 def test_wall_and_step_times_are_measured(monkeypatch):
     import time
 
-    clock = iter(np.arange(1_000_000) * 1.0)
+    clock = iter(1000.0 + np.arange(1_000_000))
     monkeypatch.setattr(time, "perf_counter", lambda: float(next(clock)))
     start = np.array([[2.0, 2.0]])
     problem = Problem(10, 10, (), 0.5, 0.1, start, start)
