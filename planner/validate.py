@@ -110,7 +110,6 @@ def min_clearance(problem: Problem, plan: Plan) -> Clearance:
     m = plan.m
     r = problem.radius
     env = problem.env
-    best = Clearance(np.inf, "robot-wall", (0,), None, -1, 0.0)
 
     # The start placement: the world and every pair of robots.
     c0, who0 = env.point_clearance_detail(w[0])

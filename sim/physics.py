@@ -351,7 +351,7 @@ def _execute(problem, plan, params, progress) -> SimReport:
     working = np.ones(m, bool)
     reached, final_error, per_robot = _reached(positions[-1], problem.target, float(params.tolerance), working)
     return _report(
-        problem, world, witness, monitor, times, positions, tracking, reached, final_error, per_robot,
+        witness, monitor, times, positions, tracking, reached, final_error, per_robot,
         sim_time=float(n_steps * dt), wall0=wall0, step_time=step_time,
         masses=np.full(m, mass), failed=(), disturbances=(), replans=(), stopped="",
         targets_filled=_filled(positions[-1], problem.target, float(params.tolerance)),
@@ -359,7 +359,7 @@ def _execute(problem, plan, params, progress) -> SimReport:
     )
 
 
-def _report(problem, world, witness, monitor, times, positions, tracking, reached, final_error, per_robot,
+def _report(witness, monitor, times, positions, tracking, reached, final_error, per_robot,
             *, sim_time, wall0, step_time, masses, failed, disturbances, replans, stopped,
             targets_filled, phase_margin_deg) -> SimReport:
     contacts = sorted(
@@ -623,7 +623,7 @@ def _execute_real(problem, plan, params, rng, planner_params, progress) -> SimRe
     if stopped:
         reached = False
     return _report(
-        problem, world, witness, monitor, times, positions, tracking, reached, final_error, per_robot,
+        witness, monitor, times, positions, tracking, reached, final_error, per_robot,
         sim_time=float(times[-1]), wall0=wall0, step_time=step_time, masses=masses, failed=failed,
         disturbances=disturbances, replans=replans, stopped=stopped,
         targets_filled=_filled(positions[-1], problem.target, float(params.tolerance)),
@@ -670,5 +670,5 @@ def _reached(final: np.ndarray, target: np.ndarray, tolerance: float, working: n
     rows, cols = linear_sum_assignment(cost)
     d = cost[rows, cols]
     per[rows_w[rows]] = d <= tolerance
-    worst = float(d.max()) if len(rows) else 0.0
+    worst = float(d.max())  # rows_w is not empty, so neither is the matching
     return bool(worst <= tolerance), worst, per

@@ -14,7 +14,7 @@ event and before any node is built:
 
 Only then is the document built, with PyYAML's safe constructors plus two
 rules: a mapping may not repeat a key, and its keys must be plain values;
-an integer literal of more than 30 digits becomes a
+an integer literal of more than 40 characters becomes a
 :class:`planner.inputfile.HugeInt` (Python refuses to convert more than
 4300 digits) so that the reader can name the field that holds it.
 """
@@ -55,12 +55,9 @@ def load_yaml(text: str):
         raise YamlRefused(f"line {line}, column {column}",
                           f"invalid YAML: the character U+{_code(exc.character):04X} is not allowed") from None
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-        where = _where(mark)
+        where = _where(getattr(exc, "problem_mark", None))
         problem = getattr(exc, "problem", None) or str(exc)
         raise YamlRefused(where, f"invalid YAML: {_short(problem)}") from None
-    except RecursionError:  # only without the depth check, kept for safety
-        raise YamlRefused("yaml", f"nesting deeper than {MAX_DEPTH} levels") from None
 
 
 def _code(character) -> int:
