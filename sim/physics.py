@@ -136,7 +136,7 @@ class SimReport:
     @property
     def parked(self) -> int:
         """Working robots that end on a parking place (failed robots block their targets)."""
-        return len(self.replans[-1].parked) if self.replans else 0
+        return len(getattr(self.replans[-1], "parked", ())) if self.replans else 0
 
     @property
     def first_contact(self) -> Contact | None:

@@ -72,7 +72,7 @@ def test_failed_robots_are_named_and_not_counted_as_missing():
     r = _report(failed=(1,), reached_robots=np.array([True, False]), targets_filled=1)
     assert r.ok
     assert r.verdict == (
-        "no contact, every working robot on a target; robots 1 failed; 1 of 2 targets filled"
+        "no contact, every working robot on a target; robot 1 failed; 1 of 2 targets filled"
     )
     r = _report(failed=(2, 0), reached=False, reached_robots=np.array([False, False, False, False]),
                 targets_filled=0, final_error=3.0)
