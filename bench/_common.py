@@ -252,3 +252,43 @@ def markdown_table(columns: list[str], rows: list[dict]) -> str:
     for r in rows:
         out.append("| " + " | ".join(_cell(r.get(c, "")) for c in columns) + " |")
     return "\n".join(out)
+
+
+def _child(conn, fn, args) -> None:
+    try:
+        conn.send(fn(*args))
+    except Exception as exc:  # reported to the parent
+        conn.send({"error": repr(exc)})
+    conn.close()
+
+
+def in_fresh_process(fn, args: tuple, timeout_s: float) -> dict:
+    """``fn(*args)`` (a module-level function returning a dict) in a fresh spawned process.
+
+    Each case gets its own interpreter, so its peak memory is its own.  The
+    result, or ``{"error": reason}`` when ``fn`` raised, the process died
+    (out of memory?) or it did not answer within ``timeout_s`` (then it is
+    killed).
+    """
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
+    proc.start()
+    send.close()
+    result = None
+    try:
+        if recv.poll(timeout_s):
+            result = recv.recv()
+    except EOFError:
+        result = {"error": "the worker process died (out of memory?)"}
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join()
+        recv.close()
+    if result is None:
+        result = {"error": "the worker process did not answer in time"}
+    return result
+

@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import multiprocessing as mp
 import sys
 import time
 from dataclasses import dataclass, field
@@ -60,7 +59,7 @@ import numpy as np
 
 from planner import Polygon, Problem
 
-from ._common import MARGIN, RADIUS, machine_info, markdown_table, percentile
+from ._common import MARGIN, RADIUS, in_fresh_process, machine_info, markdown_table, percentile
 
 __all__ = ["CASES", "COLUMNS", "LIMIT_COLUMNS", "Case", "case_problem", "limit_rows", "main", "run_case"]
 
@@ -332,35 +331,12 @@ def _run_limits(case: Case, seeds: list[int], limits: tuple) -> dict:
     return {"records": out, "rss_mib": _maxrss_mib()}
 
 
-def _child(conn, case, seeds, time_limit, limits=None):
-    try:
-        conn.send(_run_case(case, seeds, time_limit) if limits is None else _run_limits(case, seeds, limits))
-    except Exception as exc:  # reported to the parent
-        conn.send({"error": repr(exc)})
-    conn.close()
-
-
 def _in_child(case: Case, seeds: list[int], time_limit: float, limits=None) -> dict:
     """``_run_case`` (or ``_run_limits``) in a fresh spawned process."""
-    ctx = mp.get_context("spawn")
-    recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(send, case, seeds, time_limit, limits), daemon=True)
-    proc.start()
-    send.close()
-    result = None
-    try:
-        if recv.poll(len(seeds) * (time_limit * 1.5 + 60.0) + 120.0):
-            result = recv.recv()
-    except EOFError:
-        result = {"error": "the worker process died (out of memory?)"}
-    finally:
-        if proc.is_alive():
-            proc.kill()
-        proc.join()
-        recv.close()
-    if result is None:
-        result = {"error": "the worker process did not answer in time"}
-    return result
+    timeout = len(seeds) * (time_limit * 1.5 + 60.0) + 120.0
+    if limits is None:
+        return in_fresh_process(_run_case, (case, seeds, time_limit), timeout)
+    return in_fresh_process(_run_limits, (case, seeds, limits), timeout)
 
 
 #: The time-limit table: cases, limits [s], seeds per case and limit.

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import multiprocessing as mp
 import sys
 import time
 
@@ -39,7 +38,8 @@ import numpy as np
 from planner import NoPlanFound, PlannerParams, plan
 from planner.bounds import lower_bounds
 
-from ._common import machine_info, markdown_table, percentile, scaled_problem, side_for, warm_up_planner
+from ._common import (in_fresh_process, machine_info, markdown_table, percentile, scaled_problem, side_for,
+                      warm_up_planner)
 
 __all__ = ["COLUMNS", "fit_exponent", "format_report", "main", "run_size", "scaled_problem", "side_for"]
 
@@ -88,34 +88,9 @@ def _run_size(m: int, seeds: int, time_limit: float) -> dict:
     return {"records": records, "rss_mib": _maxrss_mib() - base}
 
 
-def _size_child(conn, m, seeds, time_limit):
-    try:
-        conn.send(_run_size(m, seeds, time_limit))
-    except Exception as exc:  # reported to the parent
-        conn.send({"error": repr(exc)})
-    conn.close()
-
-
 def run_size(m: int, seeds: int, time_limit: float) -> dict:
     """One table row: ``m`` robots, seeds ``0..seeds-1``, in a fresh spawned process."""
-    ctx = mp.get_context("spawn")
-    recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_size_child, args=(send, m, seeds, time_limit), daemon=True)
-    proc.start()
-    send.close()
-    result = None
-    try:
-        if recv.poll(seeds * (time_limit + 60.0) + 120.0):
-            result = recv.recv()
-    except EOFError:
-        result = {"error": "the worker process died"}
-    finally:
-        if proc.is_alive():
-            proc.kill()
-        proc.join()
-        recv.close()
-    if result is None:
-        result = {"error": "the worker process did not answer in time"}
+    result = in_fresh_process(_run_size, (m, seeds, time_limit), seeds * (time_limit + 60.0) + 120.0)
     if "error" in result:
         raise RuntimeError(f"scaling run for m = {m} failed: {result['error']}")
     rec = result["records"]
