@@ -50,7 +50,7 @@ from .realism import (
     streams,
 )
 from .recovery import AVERAGE, SETTLE, RecoveryFailed, Replan, StopReference, replan
-from .words import plural, reached_phrase
+from .words import plural, reached_phrase, run_notes
 from .world import build_world
 
 __all__ = ["Contact", "Disturbance", "Replan", "SimReport", "execute"]
@@ -170,21 +170,11 @@ class SimReport:
             missed = [i for i in working if not self.reached_robots[i]]
             who = ", ".join(str(i) for i in missed[:10]) + (" ..." if len(missed) > 10 else "")
             parts.append(f"robots {who} end off target (worst {self.final_error:.3g})")
-        if self.failed:
-            many = "s" if len(self.failed) != 1 else ""
-            parts.append(f"robot{many} {', '.join(str(i) for i in self.failed)} failed")
-        if self.parked:
-            parts.append(f"{plural(self.parked, 'robot')} parked")
         m = 0 if self.reached_robots is None else len(self.reached_robots)
-        if 0 <= self.targets_filled < m:
-            parts.append(f"{self.targets_filled} of {m} targets filled")
-        if self.replans:
-            parts.append(plural(len(self.replans), "replan"))
         if not self.contacts and not self.stopped and self.reached:
             parts.insert(0, "no contact, " + reached_phrase(bool(self.failed), self.parked))
-        if self.phase_margin_deg <= 0:
-            parts.append(f"the controller is unstable with its delays (phase margin {self.phase_margin_deg:.0f} "
-                         f"deg): lower kp and kd, or the latency")
+        parts += run_notes(self.failed, self.parked, self.targets_filled, m, len(self.replans),
+                           self.phase_margin_deg, advice=True)
         return "; ".join(parts)
 
     def to_dict(self) -> dict:

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .media import atomic_path
-from .words import reached_phrase
+from .words import reached_phrase, run_notes
 
 __all__ = ["EMBED_MAX_BYTES", "run_page", "verdict", "write_run_page"]
 
@@ -101,24 +101,8 @@ def _parked(sim: dict) -> int:
 
 def _physics_notes(sim: dict, m) -> list[str]:
     """What a realistic run adds to the verdict: failed robots, empty targets, replans, an unstable loop."""
-    notes = []
-    failed = sim.get("failed") or []
-    if failed:
-        notes.append(f"robot{'s' if len(failed) != 1 else ''} {', '.join(str(i) for i in failed[:10])}"
-                     f"{' ...' if len(failed) > 10 else ''} failed")
-    parked = _parked(sim)
-    if parked:
-        notes.append(f"{parked} robot{'s' if parked != 1 else ''} parked")
-    filled = sim.get("targets_filled")
-    if isinstance(filled, int) and isinstance(m, int) and 0 <= filled < m:
-        notes.append(f"{filled} of {m} targets filled")
-    replans = sim.get("replans") or []
-    if replans:
-        notes.append(f"{len(replans)} replan{'s' if len(replans) != 1 else ''}")
-    pm = sim.get("phase_margin_deg")
-    if isinstance(pm, (int, float)) and pm <= 0:
-        notes.append(f"the controller is unstable with its delays (phase margin {pm:.0f} deg)")
-    return notes
+    return run_notes(sim.get("failed"), _parked(sim), sim.get("targets_filled"), m,
+                     len(sim.get("replans") or []), sim.get("phase_margin_deg"), list_max=10)
 
 
 def _describe_contact(c: dict) -> str:
