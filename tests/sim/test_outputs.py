@@ -269,13 +269,17 @@ def test_read_only_file_system_is_refused(tmp_path, monkeypatch):
         check_out_dir(tmp_path)
 
 
-def _as_nobody() -> list[str] | None:
-    """A prefix that runs a command as an unprivileged user, or None."""
+def _as_nobody() -> tuple[list[str] | None, str]:
+    """A prefix that runs swarmform as an unprivileged user, or None and why not."""
     if os.geteuid() != 0:
-        return []
-    if shutil.which("setpriv"):
-        return ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
-    return None
+        return [], ""
+    if not shutil.which("setpriv"):
+        return None, "running as root without setpriv: permissions cannot be tested"
+    prefix = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+    probe = subprocess.run(prefix + SWARMFORM + ["--version"], capture_output=True, text=True, cwd="/")
+    if probe.returncode != 0:  # e.g. a checkout inside a folder only root may enter
+        return None, f"the unprivileged user cannot run swarmform here: {probe.stderr.strip()[:120]}"
+    return prefix, ""
 
 
 @pytest.mark.parametrize("argv", [
@@ -285,9 +289,9 @@ def _as_nobody() -> list[str] | None:
     ["show", "scenarios/paper/fig1-line-to-phi.yaml", "-o", "{ro}/s.png"],
 ], ids=["run", "run-sub", "plan", "show"])
 def test_read_only_folder_is_refused_before_any_work(tmp_path, argv):
-    prefix = _as_nobody()
+    prefix, why = _as_nobody()
     if prefix is None:
-        pytest.skip("running as root without setpriv: permissions cannot be tested")
+        pytest.skip(why)
     import tempfile
 
     home = Path(tempfile.mkdtemp(prefix="swarmform-ro-"))  # reachable by the unprivileged user
