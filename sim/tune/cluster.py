@@ -12,9 +12,17 @@ keep dying is a ``WorkerDied`` row (Dask's ``KilledWorker``).  Each row
 records the address of the Dask worker that computed it in ``worker``.
 
 Failures of the cluster itself are one line each: a scheduler that cannot
-be reached is a :class:`~sim.tune.spec.TuneError` (exit 2, nothing run);
-a scheduler lost mid-sweep is a :class:`ClusterLostError` (exit 4; the rows
-written so far stay, and the same command finishes the sweep).  Dask's own
+be reached (nothing accepts a connection at the address) is a
+:class:`~sim.tune.spec.TuneError` (exit 2, nothing run); a peer that accepts
+the connection but does not complete Dask's handshake and first reply within
+the connect deadline (silent, garbage, closed), and a scheduler lost or silent
+mid-sweep, are a :class:`ClusterLostError` (exit 4; the rows written so far
+stay, and the same command finishes the sweep).  Every wait on the network
+has a deadline: connecting, the handshake and the first reply
+(``_CONNECT_TIMEOUT_S`` plus ``_GRACE_S``), the cluster's workers
+(``_WORKERS_TIMEOUT_S``), each request of the sweep (``_REPLY_TIMEOUT_S``) and
+each run (its watchdog).  A Dask call that overruns its deadline is abandoned
+in a daemon thread, so it cannot keep the process from exiting.  Dask's own
 log records are silenced meanwhile, so they add no lines.
 """
 
@@ -22,6 +30,8 @@ from __future__ import annotations
 
 import logging
 import queue
+import socket
+import threading
 import time
 import uuid
 from collections import deque
@@ -35,6 +45,9 @@ __all__ = ["ClusterLostError", "close", "connect", "run_cluster"]
 _CONNECT_TIMEOUT_S = 10.0
 _WORKERS_TIMEOUT_S = 10.0  # how long to wait for a cluster without workers to get one
 _CLOSE_TIMEOUT_S = 5.0
+_GRACE_S = 1.0  # beyond Dask's own connect timeout, before a hung connection attempt is abandoned
+_REPLY_TIMEOUT_S = 10.0  # each request to the scheduler during the sweep
+_PROBE_TIMEOUT_S = 2.0  # does anything accept a TCP connection at the address?
 _LOGGERS = ("distributed", "tornado")
 
 
@@ -43,25 +56,106 @@ class ClusterLostError(RuntimeError):
 
 
 def connect(address: str):
-    """A Dask distributed client of the scheduler at ``address``, with at least one worker."""
+    """A Dask distributed client of the scheduler at ``address``, with at least one worker.
+
+    Raises :class:`TuneError` when nothing accepts a connection at ``address``
+    or the cluster has no workers, :class:`ClusterLostError` when a peer
+    accepts the connection but does not answer as a Dask scheduler in time.
+    """
     try:
         from dask.distributed import Client
     except ImportError:
         raise TuneError("--scheduler: needs dask.distributed; install it with "
                         "pip install 'swarmform[cluster]'") from None
     with _quiet():
+        deadline = _CONNECT_TIMEOUT_S + _GRACE_S
         try:
-            client = Client(address, timeout=_CONNECT_TIMEOUT_S)
-        except Exception as exc:  # noqa: BLE001 - any failure to connect is bad input
-            raise TuneError(f"--scheduler: cannot connect to {address}: "
-                            f"{type(exc).__name__}: {one_line(exc)}") from None
+            client = _within(deadline, Client, address, timeout=_CONNECT_TIMEOUT_S)
+        except Exception as exc:  # noqa: BLE001 - a timeout, or any failure of Dask's connection
+            if not _accepts(address):
+                raise TuneError(f"--scheduler: cannot connect to {address}: "
+                                f"{type(exc).__name__}: {one_line(exc)}") from None
+            if isinstance(exc, (_Overdue, TimeoutError)):  # ours, or Dask's own for the first reply
+                why = f"no Dask handshake and reply within {_CONNECT_TIMEOUT_S:g} s"
+            else:
+                why = f"{type(exc).__name__}: {one_line(exc)}"[:90]
+            raise ClusterLostError(f"--scheduler: {address} accepted the connection but did not answer "
+                                   f"as a Dask scheduler ({why})") from None
         try:
-            client.wait_for_workers(1, timeout=_WORKERS_TIMEOUT_S)
+            _within(_WORKERS_TIMEOUT_S + _GRACE_S, client.wait_for_workers, 1, timeout=_WORKERS_TIMEOUT_S)
+        except _Overdue:
+            _abandon(client)
+            raise ClusterLostError(f"--scheduler: the Dask scheduler at {address} stopped answering "
+                                   f"(no reply within {_WORKERS_TIMEOUT_S + _GRACE_S:g} s)") from None
         except Exception:  # noqa: BLE001 - a timeout, or the scheduler went away meanwhile
             close(client)
             raise TuneError(f"--scheduler: the cluster at {address} has no workers "
                             f"(waited {_WORKERS_TIMEOUT_S:g} s)") from None
     return client
+
+
+class _Overdue(Exception):
+    """A Dask call ran past its deadline; it goes on, abandoned, in a daemon thread."""
+
+
+def _within(seconds: float, fn, *args, **kwargs):
+    """``fn(*args, **kwargs)``, or :class:`_Overdue` after ``seconds``.
+
+    The call runs in a daemon thread: one that hangs on a silent peer is
+    abandoned there and does not keep the process from exiting.  Dask's
+    loggers stay silenced for good then, so its death adds no lines.
+    """
+    box: dict = {}
+
+    def call() -> None:
+        try:
+            box["value"] = fn(*args, **kwargs)
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            box["error"] = exc
+
+    thread = threading.Thread(target=call, name="swarmform-dask-call", daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        _quiet().__enter__()  # never exited: the abandoned call may log as it dies
+        raise _Overdue(f"no answer within {seconds:g} s")
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def _accepts(address: str) -> bool:
+    """Whether something accepts a TCP connection at ``address`` (true for addresses not over TCP)."""
+    try:
+        from distributed.comm.addressing import parse_address, parse_host_port
+
+        scheme, location = parse_address(address)
+        if scheme not in ("tcp", "tls"):
+            return True
+        host, port = parse_host_port(location)
+    except Exception:  # noqa: BLE001 - not an address Dask can use: it cannot be reached
+        return False
+    try:
+        with socket.create_connection((host, port), timeout=_PROBE_TIMEOUT_S):
+            return True
+    except OSError:
+        return False
+
+
+def _abandon(client) -> None:
+    """Close ``client`` without waiting on a scheduler that stopped answering."""
+    try:
+        _within(_CLOSE_TIMEOUT_S, close, client)
+    except _Overdue:
+        pass
+
+
+def _ask(client, method: str, *args):
+    """``client.method(*args)``: a request to the scheduler, with a deadline (else the cluster is lost)."""
+    try:
+        return _within(_REPLY_TIMEOUT_S, getattr(client, method), *args)
+    except _Overdue:
+        raise ClusterLostError(f"the scheduler did not answer within {_REPLY_TIMEOUT_S:g} s") from None
 
 
 def close(client) -> None:
@@ -79,7 +173,9 @@ def run_cluster(todo: list[RunSpec], client, window: int | None, state, limit: C
 
     with _quiet():
         try:
-            threads = dict(client.nthreads())
+            threads = dict(_ask(client, "nthreads"))
+        except ClusterLostError:
+            raise
         except Exception as exc:  # noqa: BLE001
             raise ClusterLostError(one_line(exc)) from None
         arrived: queue.Queue = queue.Queue()
@@ -130,7 +226,9 @@ def _submit(client, spec: RunSpec, banned: set[str]):
     allowed = None
     if banned:
         try:
-            allowed = [w for w in client.nthreads() if w not in banned]
+            allowed = [w for w in _ask(client, "nthreads") if w not in banned]
+        except ClusterLostError:
+            raise
         except Exception as exc:  # noqa: BLE001
             raise ClusterLostError(one_line(exc)) from None
     # pure=False and a fresh key: every run is computed, never taken from the cluster's cache
@@ -149,7 +247,9 @@ def _expire(client, running: dict, pending: deque, banned: set[str], state, limi
     if not late:
         return
     try:
-        where = {key: w for w, keys in client.processing().items() for key in keys}
+        where = {key: w for w, keys in _ask(client, "processing").items() for key in keys}
+    except ClusterLostError:
+        raise
     except Exception as exc:  # noqa: BLE001
         raise ClusterLostError(one_line(exc)) from None
     for fut in late:
