@@ -47,6 +47,7 @@ _PALETTE_SIZE = 255  # colours in the palette; one index is left for transparenc
 _EXACT_COLOURS = 160  # colours of the largest flat areas, kept exactly
 _REST_WEIGHT = 64  # the most a colour counts in the median cut of the others
 _SAMPLE_FRAMES = 60  # frames looked at for the palette, spread over the video
+_SAMPLE_BYTES = 256 << 20  # the most frames of a one-shot iterator held for the palette [bytes]
 _MP4_QUALITY = 6  # imageio-ffmpeg quality 0..10; 6 is x264 crf 20
 
 
@@ -212,9 +213,10 @@ class _GifWriter:
 def _palette_and_stream(frames, colours) -> tuple[np.ndarray, Iterator[np.ndarray]]:
     """The shared palette, and the frames to encode (all of them, in order).
 
-    A sequence (``len`` and indexing) is sampled over its whole length; from
-    a one-shot iterator the first ``_SAMPLE_FRAMES`` frames are held and
-    sampled.
+    A sequence (``len`` and indexing) is sampled over its whole length, one
+    frame drawn at a time (none of them is kept); from a one-shot iterator
+    the first ``_SAMPLE_FRAMES`` frames, but no more than ``_SAMPLE_BYTES``
+    of them (at least one), are held and sampled.
     """
     if colours is None:
         colours = getattr(frames, "colours", None)
@@ -223,18 +225,39 @@ def _palette_and_stream(frames, colours) -> tuple[np.ndarray, Iterator[np.ndarra
         if n == 0:
             raise ValueError("frames must hold at least one frame, got none")
         picks = [int(k) for k in np.unique(np.linspace(0, n - 1, min(n, _SAMPLE_FRAMES)).round())]
-        sample = [frames[k] for k in picks]
+        sample = _Checked(frames, picks)
         stream = iter(frames)
     else:
         it = iter(frames)
-        sample = list(itertools.islice(it, _SAMPLE_FRAMES))
-        if not sample:
+        held: list[np.ndarray] = []
+        size = 0
+        for f in it:
+            held.append(f)
+            size += np.asarray(f).nbytes
+            if len(held) >= _SAMPLE_FRAMES or size >= _SAMPLE_BYTES:
+                break
+        if not held:
             raise ValueError("frames must hold at least one frame, got none")
-        picks = list(range(len(sample)))
-        stream = itertools.chain(sample, it)
-    first = _check_frame(sample[0], picks[0], None)
-    sample = [_check_frame(f, k, first.shape) for k, f in zip(picks, sample)]
+        sample = _Checked(held, range(len(held)))
+        stream = itertools.chain(held, it)
     return _shared_palette(sample, colours), stream
+
+
+class _Checked(Sequence):
+    """Frames ``picks`` of ``frames``, each checked (and drawn, if lazy) when asked for."""
+
+    def __init__(self, frames, picks):
+        self._frames, self._picks = frames, list(picks)
+        self._shape = None
+
+    def __len__(self) -> int:
+        return len(self._picks)
+
+    def __getitem__(self, j):
+        k = self._picks[j]
+        f = _check_frame(self._frames[k], k, self._shape)
+        self._shape = f.shape
+        return f
 
 
 def _shared_palette(frames: Sequence[np.ndarray], colours: np.ndarray | None = None) -> np.ndarray:
@@ -251,25 +274,34 @@ def _shared_palette(frames: Sequence[np.ndarray], colours: np.ndarray | None = N
     a short k-means refinement, each counted at most ``_REST_WEIGHT`` times
     so that large areas do not crowd out small details.
 
+    The frames are asked for one at a time and only their colour counts are
+    kept, so memory holds one frame, whatever the sample's length and size.
+
     Index ``n`` stays free and inside the GIF colour table (whose size is a
     power of two): the encoder marks unchanged pixels with it.
     """
     from PIL import Image
 
-    grids = [frames[0], frames[-1]] + [f[::2, ::2] for f in frames[1:-1]]
-    packed = [_pack(g.reshape(-1, 3)).reshape(g.shape[:2]) for g in grids]
     known = np.zeros(0, np.uint32)
     if colours is not None and len(colours):
         known = _pack(np.asarray(colours, np.uint8).reshape(-1, 3))
         known = known[np.sort(np.unique(known, return_index=True)[1])][:_EXACT_COLOURS]
-    colours_seen, counts = np.unique(np.concatenate([p.ravel() for p in packed]), return_counts=True)
+    n = len(frames)
+    colours_seen, counts = np.zeros(0, np.uint32), np.zeros(0, np.int64)
+    flat_colours, flat_counts = np.zeros(0, np.uint32), np.zeros(0, np.int64)
+    for j in range(n):
+        f = frames[j]
+        g = f if j in (0, n - 1) else f[::2, ::2]
+        p = _pack(g.reshape(-1, 3)).reshape(g.shape[:2])
+        del f, g
+        colours_seen, counts = _add_counts(colours_seen, counts, *np.unique(p, return_counts=True))
+        inner = p[:-1, :-1]
+        flat = inner[(inner == p[1:, :-1]) & (inner == p[:-1, 1:])]
+        flat_colours, flat_counts = _add_counts(flat_colours, flat_counts, *np.unique(flat, return_counts=True))
+        del p, inner, flat
     every = np.union1d(colours_seen, known)
     if len(every) <= _PALETTE_SIZE:
         return _with_free_index(every)
-    flat = np.concatenate(
-        [p[:-1, :-1][(p[:-1, :-1] == p[1:, :-1]) & (p[:-1, :-1] == p[:-1, 1:])] for p in packed]
-    )
-    flat_colours, flat_counts = np.unique(flat, return_counts=True)
     by_area = flat_colours[np.argsort(-flat_counts, kind="stable")]
     exact = np.sort(np.concatenate([known, by_area[~np.isin(by_area, known)]])[:_EXACT_COLOURS])
     rest = ~np.isin(colours_seen, exact)
@@ -283,6 +315,15 @@ def _shared_palette(frames: Sequence[np.ndarray], colours: np.ndarray | None = N
     reduced = np.asarray(q.getpalette()[: 3 * (int(used.max()) + 1)], np.uint8).reshape(-1, 3)[used]
     extra = np.setdiff1d(_pack(reduced), exact)
     return _with_free_index(np.concatenate([exact, extra])[:_PALETTE_SIZE])
+
+
+def _add_counts(values, counts, new_values, new_counts):
+    """Merge two (sorted unique values, counts) tallies into one."""
+    if len(values) == 0:
+        return new_values.astype(np.uint32), new_counts.astype(np.int64)
+    u, inv = np.unique(np.concatenate([values, new_values]), return_inverse=True)
+    return u, np.bincount(inv.reshape(-1), weights=np.concatenate([counts, new_counts]),
+                          minlength=len(u)).astype(np.int64)
 
 
 def _with_free_index(packed: np.ndarray) -> np.ndarray:
@@ -415,7 +456,8 @@ def write_video(
         grow with the number of frames.  For the GIF's shared palette, a
         sequence (``len`` and indexing, such as what
         :func:`sim.render.render_frames` returns) is sampled over the whole
-        video first; of a one-shot iterator the first 60 frames are sampled.
+        video first, one frame at a time; of a one-shot iterator the first
+        60 frames (at most 256 MB of them) are held and sampled.
     colours: ``(n, 3) uint8`` colours kept exactly in the GIF palette, most
         important first (default: the ``colours`` attribute of ``frames``,
         if any).

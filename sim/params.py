@@ -16,8 +16,17 @@ __all__ = [
     "SimParams",
 ]
 
-MAX_RENDER_SIZE = 4096
-"""The largest ``render.size`` [px]."""
+MAX_RENDER_SIZE = 3072
+"""The largest ``render.size`` [px] of a video.
+
+Measured on fig1-line-to-phi, a 5 s video (100 frames), under a 3 GB
+address space (``prlimit --as=3000000000``): at 3072 px the GIF peaks at
+about 0.5 GB resident and takes about 40 s, the MP4 about 1.4 to 1.7 GB
+(ffmpeg's x264) and 16 s.  At 4096 px the GIF takes over 70 s and the MP4
+53 s at 1.9 GB, too slow and too close to the budget.  Memory grows with
+the frame area only (a few frames at a time: frames are streamed, the GIF
+palette is sampled one frame at a time), never with the video's length.
+"""
 MAX_FPS = 120
 """The highest ``render.fps`` [frames per video second]."""
 
