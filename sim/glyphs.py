@@ -92,6 +92,8 @@ def check_text(text) -> str:
 
 def check_font(path: str | Path) -> Path:
     """The font path, or :class:`GlyphError` unless it is a readable regular file of at most 16 MiB."""
+    if "\x00" in str(path):
+        raise GlyphError("font", "holds a NUL character (\\0), which no file path can hold")
     p = Path(path)
     try:
         st = p.stat()

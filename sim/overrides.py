@@ -29,7 +29,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import yaml
+from .yamlfile import YamlRefused, load_yaml
 
 from .scenario import ScenarioError
 
@@ -175,10 +175,9 @@ def _scalar(key: str, text: str):
     if not text:
         raise OverrideError(key, "a value is empty")
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        problem = getattr(exc, "problem", None) or "invalid YAML"
-        raise OverrideError(key, f"value {_short(text)!r}: {problem}") from None
+        value = load_yaml(text)  # the file rules: no anchors, aliases or foreign tags
+    except YamlRefused as exc:
+        raise OverrideError(key, f"value {_short(text)!r}: {exc.reason}") from None
     if isinstance(value, str) and _NUMBER_RE.match(text):
         value = float(text)  # YAML 1.1 reads 1e-3 as a string; here it is a number
     if isinstance(value, float) and not math.isfinite(value):

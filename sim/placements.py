@@ -36,6 +36,7 @@ __all__ = [
     "formation_side",
     "make_shape",
     "text_glyphs",
+    "text_strokes",
     "uses_rng",
 ]
 
@@ -57,7 +58,8 @@ def text_glyphs(text: str, font: str | None):
 
 
 @lru_cache(maxsize=32)
-def _text_strokes(text: str, font: str | None) -> tuple[Stroke, ...]:
+def text_strokes(text: str, font: str | None) -> tuple[Stroke, ...]:
+    """The strokes traced from the skeleton of ``text``'s glyphs (cached)."""
     from planner.skeleton import mask_strokes
 
     return drawing(mask_strokes(text_glyphs(text, font).mask))
@@ -71,7 +73,7 @@ def _user_strokes(polylines: tuple) -> tuple[Stroke, ...]:
 def formation_drawing(spec) -> tuple[Stroke, ...] | None:
     """The strokes robots are spread along (text with ``fill: strokes``, ``strokes``), or None."""
     if spec.text is not None and spec.fill == "strokes":
-        return _text_strokes(spec.text, spec.font)
+        return text_strokes(spec.text, spec.font)
     if spec.strokes is not None:
         return _user_strokes(spec.strokes)
     return None

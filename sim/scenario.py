@@ -580,8 +580,9 @@ def _read_drawing(r: _Reader, value: dict, f: str, base: Path):
     if "text" not in value:
         r.fail(f, "needs text (with optional font and fill) or strokes")
     text = value["text"]
-    if isinstance(text, (int, float)) and not isinstance(text, bool):
-        text = str(text)  # text: 2024 reads as a number
+    if not isinstance(text, str):
+        hint = f' (write it in quotes: text: "{text}")' if isinstance(text, (int, float)) else ""
+        r.fail(f"{f}.text", f"must be a string, got {_kind(text)}{hint}")
     fill = value.get("fill", "strokes")
     if fill not in ("strokes", "area"):
         r.fail(f"{f}.fill", f"must be strokes or area, got {_kind(fill)}")
@@ -589,13 +590,31 @@ def _read_drawing(r: _Reader, value: dict, f: str, base: Path):
     if font is not None:
         if not isinstance(font, str) or not font or len(font) > 4096:
             r.fail(f"{f}.font", f"must be a path to a TrueType font file, got {_kind(font)}")
+        if "\x00" in font:
+            r.fail(f"{f}.font", "holds a NUL character (\\0), which no file path can hold")
         font = str(base / Path(font).expanduser()) if not Path(font).expanduser().is_absolute() else font
     try:
         check_text(text)
         text_glyphs(text, font)
     except GlyphError as exc:
         r.fail(f"{f}.{exc.field}", exc.reason)
+    if fill == "strokes" and not _traced_extent(text, font) > 0:
+        r.fail(f"{f}.text", f"{_short_text(text)} traces to a single point, no line to place robots "
+               "along; use fill: area, or characters with strokes")
     return text, font, fill, None
+
+
+def _traced_extent(text: str, font: str | None) -> float:
+    """The longer side of the box of ``text``'s traced strokes [pixels of the glyph mask]."""
+    from planner.strokes import bounds
+
+    from .placements import text_strokes
+
+    return float(np.ptp(bounds(text_strokes(text, font)), axis=0).max())
+
+
+def _short_text(text: str) -> str:
+    return repr(text if len(text) <= 24 else text[:21] + "...")
 
 
 def _read_region(r: _Reader, value, f: str, width, height) -> tuple[float, float, float, float]:

@@ -64,6 +64,10 @@ LINE_MAX = 200
 
 # file -> (the field its one-line message names, a piece of the reason)
 CORPUS = {
+    "text-no-skeleton.yaml": ("target.formation.text", "'.' traces to a single point, no line to place robots"),
+    "text-no-skeleton-count.yaml": ("target.formation.text", "'.' traces to a single point"),
+    "text-number.yaml": ("target.formation.text", 'must be a string, got number 12345 (write it in quotes'),
+    "font-nul-byte.yaml": ("target.formation.font", "holds a NUL character"),
     "scatter-too-many.yaml": ("start", "80 robots do not fit the workspace at spacing 2.1; at most"),
     "font-missing.yaml": ("target.formation.font", "no such file"),
     "target-and-targets.yaml": ("targets", "give either target (one) or targets (a chain), not both"),
@@ -166,7 +170,8 @@ CORPUS = {
     "render-format-unknown.yaml": ("render.formats[1]", "got string 'avi'"),
     "render-formats-three.yaml": ("render.formats", "got a list of 3"),
     "render-fps-billion-mp4.yaml": ("render.fps", "in [1, 120], got 1000000000"),
-    "render-size-20000.yaml": ("render.size", "in [64, 4096], got 20000"),
+    "render-size-20000.yaml": ("render.size", "in [64, 3072], got 20000"),
+    "render-size-3073.yaml": ("render.size", "in [64, 3072], got 3073"),
     "render-size-million.yaml": ("render.size", "got 1000000"),
     "render-speedup-tiny.yaml": ("render.speedup", "got 1e-09"),
     "render-video-seconds-huge.yaml": ("render.video_seconds", "got 1e+09"),
@@ -368,6 +373,11 @@ SCRIPT_BAD = ("python-tag.yaml", "yaml-alias-bomb.yaml", "plan-huge-integer.json
 # message).  Each case's folder is empty or holds what ``_prepare`` puts
 # there, and must not change.
 OPTION_CASES = {
+    "show-output-jpg": (["show", str(FIG1), "-o", "{d}/x.jpg"], "show writes PNG images only"),
+    "set-anchor": (["run", str(FIG1), "--no-render", "--out", "{d}", "--set", "robots.margin=&a 0.1"],
+                   "--set robots.margin: value '&a 0.1': anchors (&name) are not allowed"),
+    "set-tag": (["run", str(FIG1), "--no-render", "--out", "{d}", "--set", "robots.margin=!!python/name:os.system"],
+                "is not allowed (only YAML's own"),
     "argv-nothing": ([], "required: COMMAND"),
     "argv-unknown-command": (["fly"], "invalid choice"),
     "argv-formations-extra": (["formations", "extra"], "unrecognized arguments"),
