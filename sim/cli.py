@@ -12,6 +12,7 @@ paths are checked before any input is read or any work done.
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from pathlib import Path
 
@@ -74,11 +75,13 @@ def _load(path: str, seed: int | None):
 
 def _cmd_show(args) -> int:
     from .media import write_png
-    from .outputs import check_out_file
+    from .outputs import OutputPathError, check_out_file
     from .render import draw_scenario
 
     if args.output:
         check_out_file(args.output, "--output")
+        if Path(args.output).suffix.lower() != ".png":
+            raise OutputPathError("--output", args.output, "show writes PNG images only; give a name ending in .png")
     scenario, seed, _rng, problem = _load(args.scenario, args.seed)
     out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-scenario.png"
     if not args.output:
@@ -240,7 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="set a scenario field (dotted path, YAML scalar), e.g. --set robots.margin=0.2; repeatable")
     r.set_defaults(func=_cmd_run)
 
-    from .tune import add_tune_parser
+    from .tune.cli import add_tune_parser
 
     t = add_tune_parser(sub)
     t.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
@@ -251,29 +254,50 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; return its exit code (see the module docstring)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv
+    from .stops import Stopped, stop_handlers
+
+    args = None
     try:
-        parser = build_parser()
-        args = parser.parse_args(argv)
-        debug = debug or bool(getattr(args, "debug", False))
-        return args.func(args)
+        with stop_handlers():
+            parser = build_parser()
+            args = parser.parse_args(argv)
+            debug = debug or bool(getattr(args, "debug", False))
+            return args.func(args)
+    except SystemExit:  # --help, --version, argument errors: before the error classes are imported
+        raise
     except _input_errors() as exc:
         _say(f"swarmform: error: {exc}")
         return EXIT_INPUT
+    except Stopped as exc:  # SIGTERM, SIGHUP, SIGQUIT: cleaned up as for Ctrl-C
+        _say(f"swarmform: stopped by {exc.args[0]}")
+        return exc.exit_code
     except KeyboardInterrupt:
         _say("swarmform: interrupted")
         return 130
     except BrokenPipeError:  # standard output closed early (swarmform ... | head)
         _silence_stdout()
+        _say("swarmform: standard output was closed (broken pipe); stopped")
         return 141  # as if killed by SIGPIPE, as the shell reports it
+    except OSError as exc:
+        if exc.errno != errno.ENOSPC:
+            return _internal(exc, debug)
+        where = exc.filename or getattr(args, "output", None) or getattr(args, "out", None) or "the output"
+        _say(f"swarmform: error: no space left on device: {where}")
+        return EXIT_INPUT
     except Exception as exc:  # noqa: BLE001 - anything else is a defect: one line, exit 3
-        if debug:
-            import traceback
+        return _internal(exc, debug)
 
-            traceback.print_exc()
-        kind = type(exc).__name__
-        hint = "" if debug else " (swarmform --debug ... shows the traceback)"
-        _say(_one_line(f"swarmform: internal error: {kind}: {exc}", LINE_MAX - len(hint)) + hint)
-        return EXIT_INTERNAL
+
+def _internal(exc: BaseException, debug: bool) -> int:
+    """Say an internal error in one line (with ``--debug``, the traceback first); exit 3."""
+    if debug:
+        import traceback
+
+        traceback.print_exception(exc)
+    kind = type(exc).__name__
+    hint = "" if debug else " (swarmform --debug ... shows the traceback)"
+    _say(_one_line(f"swarmform: internal error: {kind}: {exc}", LINE_MAX - len(hint)) + hint)
+    return EXIT_INTERNAL
 
 
 def _input_errors() -> tuple[type[BaseException], ...]:

@@ -36,6 +36,7 @@ from pathlib import Path
 from planner.inputfile import echo_path
 
 from .errors import InputError
+from .stops import STOP_SIGNALS
 
 __all__ = [
     "RUN_OUTPUTS",
@@ -210,7 +211,7 @@ def _alive(pid: int) -> bool:
 
 @contextmanager
 def signals_held():
-    """Hold SIGINT and SIGTERM back until the block ends, then act on them.
+    """Hold SIGINT, SIGTERM, SIGHUP and SIGQUIT back until the block ends, then act on them.
 
     Python-level handlers that only note the signal (they run in the main
     thread whatever thread the system delivers the signal to, unlike a
@@ -223,7 +224,7 @@ def signals_held():
         return
     noted: list[int] = []
     old = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    for sig in (signal.SIGINT, *STOP_SIGNALS):
         handler = signal.getsignal(sig)
         if handler is None:  # installed outside Python: leave it alone
             continue

@@ -167,8 +167,14 @@ def test_interrupt_in_the_mp4_encoder_keeps_the_previous_run(tmp_path, monkeypat
 
 
 @needs_mp4
-def test_sigint_during_a_run_keeps_the_previous_run(tmp_path):
-    """A real SIGINT once the staging folder exists: exit 130, the old set as it was."""
+@pytest.mark.parametrize("sig, code, line", [
+    (signal.SIGINT, 130, "swarmform: interrupted"),
+    (signal.SIGTERM, 143, "swarmform: stopped by SIGTERM"),
+    (signal.SIGHUP, 129, "swarmform: stopped by SIGHUP"),
+    (signal.SIGQUIT, 131, "swarmform: stopped by SIGQUIT"),
+])
+def test_a_stop_signal_during_a_run_keeps_the_previous_run(tmp_path, sig, code, line):
+    """A real signal once the staging folder exists: its exit code, one line, the old set as it was."""
     scen = _scenario(tmp_path)
     out = tmp_path / "media"
     r = subprocess.run(SWARMFORM + ["run", str(scen), "--out", str(out)], capture_output=True, text=True, cwd=ROOT)
@@ -187,10 +193,10 @@ def test_sigint_during_a_run_keeps_the_previous_run(tmp_path):
         time.sleep(0.01)
     assert staging.exists(), "the run never made its staging folder"
     time.sleep(0.5)  # into the physics or the rendering
-    p.send_signal(signal.SIGINT)
+    p.send_signal(sig)
     _, err = p.communicate(timeout=60)
-    assert p.returncode == 130, err
-    assert err.strip().splitlines() == ["swarmform: interrupted"]
+    assert p.returncode == code, err
+    assert err.strip().splitlines() == [line]
     assert _snapshot(out) == old
     assert sorted(p.name for p in out.iterdir()) == sorted(old)
 
@@ -360,3 +366,36 @@ def test_signals_held_defer_an_interrupt_to_the_end_of_the_block():
             steps.append("held")
     t.join()
     assert steps[-1] == "held"
+
+
+def test_a_closed_standard_output_is_one_line_and_exit_141(tmp_path):
+    """``swarmform formations | head -c 1``: the pipe closes early; one line on stderr, exit 141."""
+    p = subprocess.Popen(SWARMFORM + ["formations"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    p.stdout.close()  # the reader went away before the first byte
+    err = p.stderr.read().decode()
+    p.wait(timeout=60)
+    assert p.returncode == 141, err
+    assert err.strip().splitlines() == ["swarmform: standard output was closed (broken pipe); stopped"]
+
+
+def test_a_full_disk_is_exit_2_naming_the_path(tmp_path, monkeypatch, capsys):
+    """ENOSPC while writing an output: one line naming the path, exit 2, nothing left behind."""
+    import errno
+
+    fig1 = ROOT / "scenarios" / "paper" / "fig1-line-to-phi.yaml"
+    target = tmp_path / "x.png"
+
+    def full(path, image):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(media, "write_png", full)
+    assert main(["show", str(fig1), "-o", str(target)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"swarmform: error: no space left on device: {target}"]
+    assert list(tmp_path.iterdir()) == []
+    # the negative control: another OSError is still an internal error (exit 3)
+    def broken(path, image):
+        raise OSError(errno.EIO, "Input/output error", str(path))
+
+    monkeypatch.setattr(media, "write_png", broken)
+    assert main(["show", str(fig1), "-o", str(target)]) == 3
