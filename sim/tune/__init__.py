@@ -28,15 +28,23 @@ Example (about a second on two cores)::
     write_summary("media/fig2.jsonl")             # media/fig2.md, .html and the heatmap
 """
 
-from .cli import EXIT_CLUSTER_LOST, add_tune_parser
-from .cluster import ClusterLostError
-from .driver import BUILD_ALLOWANCE_S, PHYSICS_ALLOWANCE_S, TIMEOUT, WORKER_DIED, SweepResult, sweep, watchdog_s
-from .report import write_summary
-from .results import ResultsFile, check_output, read_results
-from .robustness import RobustCell, margin_needed, robustness_blocks, robustness_cells, wilson_interval
-from .spec import KEY_FIELDS, PAPER_DIR, VOLATILE_FIELDS, RunSpec, TuneError, failure_row, grid, paper_grid, \
-    read_variants, run_one
-from .summary import paper_table, summarize
+from importlib import import_module
+
+# name -> the module that defines it; imported on first use, so that building
+# the command line (``swarmform --help``) loads neither the planner nor Dask.
+_WHERE = {
+    **dict.fromkeys(("EXIT_CLUSTER_LOST", "add_tune_parser"), "cli"),
+    "ClusterLostError": "cluster",
+    **dict.fromkeys(("TIMEOUT", "WORKER_DIED", "SweepResult", "sweep", "watchdog_s"), "driver"),
+    **dict.fromkeys(("BUILD_ALLOWANCE_S", "PHYSICS_ALLOWANCE_S"), "limits"),
+    "write_summary": "report",
+    **dict.fromkeys(("ResultsFile", "check_output", "read_results"), "results"),
+    **dict.fromkeys(("RobustCell", "margin_needed", "robustness_blocks", "robustness_cells", "wilson_interval"),
+                    "robustness"),
+    **dict.fromkeys(("KEY_FIELDS", "PAPER_DIR", "VOLATILE_FIELDS", "RunSpec", "TuneError", "failure_row", "grid",
+                     "paper_grid", "read_variants", "run_one"), "spec"),
+    **dict.fromkeys(("paper_table", "summarize"), "summary"),
+}
 
 __all__ = [
     "BUILD_ALLOWANCE_S",
@@ -71,3 +79,15 @@ __all__ = [
     "wilson_interval",
     "write_summary",
 ]
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

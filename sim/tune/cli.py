@@ -10,18 +10,16 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..argtypes import int_at_least, seconds
-from ..overrides import combinations, parse_set
-from .cluster import ClusterLostError
-from .driver import BUILD_ALLOWANCE_S, PHYSICS_ALLOWANCE_S, sweep
-from .report import write_summary
-from .results import check_output, read_results
-from .spec import PAPER_DIR, TuneError, grid, paper_grid, read_variants
-from .summary import paper_table
+from .limits import BUILD_ALLOWANCE_S, PHYSICS_ALLOWANCE_S
+
+# The sweep's machinery (the scenario reader, the planner, Dask) is imported by
+# the commands that run, not here: building the parser, as ``--help`` does, stays
+# a matter of milliseconds.
 
 __all__ = ["EXIT_CLUSTER_LOST", "add_tune_parser"]
 
 EXIT_OK, EXIT_INCOMPLETE, EXIT_CLUSTER_LOST = 0, 1, 4
-"""0: every run has its row; 1: some runs have none (rerun); 4: the Dask scheduler was lost mid-sweep."""
+"""0: every run has its row; 1: some runs have none (rerun); 4: the Dask scheduler was lost or too slow."""
 
 _MAX_GRID = 1_000_000  # runs in one sweep
 
@@ -49,7 +47,8 @@ exit status:
   0  every run of the grid has its row (whatever the planner found)
   1  some runs have no row (the cluster lost them); rerun to finish them
   2  bad input (including a Dask scheduler that cannot be reached; nothing is run)
-  4  the Dask scheduler was lost mid-sweep; the rows so far are kept, rerun to finish
+  4  the Dask scheduler was lost mid-sweep, or a peer at --scheduler accepted the
+     connection but did not answer in time; the rows so far are kept, rerun to finish
 
 examples:
   swarmform tune scenarios/paper/fig2-random-to-C.yaml --g 1 2 3 --q 100 250 500 800 --auto
@@ -140,6 +139,11 @@ def _one_line_error(parser: argparse.ArgumentParser) -> Callable[[str], None]:
 
 
 def _cmd_tune(args) -> int:
+    from ..overrides import combinations, parse_set
+    from .cluster import ClusterLostError
+    from .driver import sweep
+    from .spec import PAPER_DIR, TuneError, grid, paper_grid, read_variants
+
     if args.summarize is not None:
         return _cmd_summarize(args)
     if args.paper:
@@ -194,6 +198,9 @@ def _cmd_tune(args) -> int:
 
 
 def _cmd_summarize(args) -> int:
+    from .results import check_output
+    from .spec import TuneError
+
     extra = [name for name, given in (("SCENARIO", args.scenarios), ("--g", args.g), ("--q", args.q),
                                       ("--auto", args.auto), ("--paper", args.paper), ("--set", args.sets),
                                       ("--simulate", args.simulate), ("--scheduler", args.scheduler),
@@ -215,6 +222,9 @@ def _cmd_summarize(args) -> int:
 
 
 def _results_path(output: str | None, default: Path) -> Path:
+    from .results import check_output
+    from .spec import TuneError
+
     path = Path(output) if output else default
     if path.suffix in (".md", ".png", ".html"):
         raise TuneError(f"--output: {path}: the results file may not end in {path.suffix}; "
@@ -224,6 +234,11 @@ def _results_path(output: str | None, default: Path) -> Path:
 
 def _report(results_path: Path, *, paper_only: bool, key: str, bound: float) -> None:
     """Write the summary files, print the Markdown (only the paper's tables for --paper)."""
+    from .report import write_summary
+    from .results import read_results
+    from .spec import TuneError
+    from .summary import paper_table
+
     rows = read_results(results_path)
     if not rows:
         raise TuneError(f"{results_path}: holds no result rows")

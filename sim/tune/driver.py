@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from .limits import BUILD_ALLOWANCE_S, PHYSICS_ALLOWANCE_S
 from .results import ResultsFile, check_output
 from .spec import RunSpec, TuneError
 
@@ -33,11 +34,6 @@ __all__ = [
     "watchdog_s",
 ]
 
-BUILD_ALLOWANCE_S = 30.0
-"""Seconds a run may take beyond its planning deadline to build the problem and write its row."""
-
-PHYSICS_ALLOWANCE_S = 270.0
-"""Further seconds a run with ``--simulate`` may take for its physics run."""
 
 PLANNING_SLACK = 1.1
 """The watchdog allows this multiple of the planning time limit."""
