@@ -10,18 +10,25 @@ time, the peak resident memory (from ``wait4``), the number of lines on
 stderr and the length of the longest, whether a traceback appeared and
 whether anything was written; the summary gives the largest of each.
 A file passes when it exits 2 with one line of at most 200 characters, no
-traceback and nothing written.  The test suite checks the same things
+traceback and nothing written.  A second table runs the cases no file can
+hold (:data:`SCRIPTED`: ``--set`` values with anchors or tags, a ``show -o``
+suffix that is not ``.png``, a Dask scheduler that accepts and stays silent,
+exit 4, and a full disk under ``run --out`` and ``show -o``) with the same
+checks and their own exit codes.  The test suite checks the same things
 (``tests/sim/test_cli_input.py``); this prints the measured figures.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -82,6 +89,87 @@ def run_case(argv: list[str], out_dir: Path, address_space: int, timeout: float)
     }
 
 
+FIG1 = "scenarios/paper/fig1-line-to-phi.yaml"
+
+#: Command-line cases no file can hold: name -> (argv with {d} for the case's
+#: folder, the exit code expected).  ``silent-scheduler`` runs against a
+#: loopback listener that accepts and never answers; ``full-disk`` writes into
+#: a 256 KiB tmpfs (root only; skipped elsewhere).
+SCRIPTED = {
+    "set-anchor": (["run", FIG1, "--no-render", "--out", "{d}", "--set", "robots.margin=&a 0.1"], 2),
+    "set-tag": (["run", FIG1, "--no-render", "--out", "{d}", "--set", "robots.margin=!!python/name:os.system"], 2),
+    "show-jpg-suffix": (["show", FIG1, "-o", "{d}/x.jpg"], 2),
+    "silent-scheduler": (["tune", FIG1, "--g", "2", "--q", "50", "--seeds", "1", "--scheduler", "tcp://{listener}",
+                          "-o", "{d}/r.jsonl"], 4),
+    "full-disk-run": (["run", FIG1, "--out", "{full}/o"], 2),
+    "full-disk-show": (["show", FIG1, "-o", "{full}/s.png"], 2),
+}
+
+
+@contextlib.contextmanager
+def _silent_listener():
+    """A loopback TCP listener that accepts connections and never sends a byte."""
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(8)
+    srv.settimeout(0.2)
+    held, stop = [], threading.Event()
+
+    def serve():
+        while not stop.is_set():
+            try:
+                held.append(srv.accept()[0])
+            except OSError:
+                pass
+
+    t = threading.Thread(target=serve, daemon=True)
+    t.start()
+    try:
+        yield "127.0.0.1:%d" % srv.getsockname()[1]
+    finally:
+        stop.set()
+        t.join(2)
+        for c in held:
+            c.close()
+        srv.close()
+
+
+@contextlib.contextmanager
+def _full_disk(tmp: Path):
+    """A nearly full 256 KiB tmpfs, or None where it cannot be mounted."""
+    mnt = tmp / "full"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)],
+                      capture_output=True).returncode != 0:
+        yield None
+        return
+    try:
+        (mnt / "filler").write_bytes(b"\0" * (252 << 10))
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+def scripted_rows(tmp: Path, address_space: int, timeout: float) -> list[tuple[str, dict | None, bool]]:
+    """Run :data:`SCRIPTED`; a row's result is None when its case cannot run on this machine."""
+    rows = []
+    with _silent_listener() as listener, _full_disk(tmp) as full:
+        for name, (args, code) in SCRIPTED.items():
+            if "{full}" in " ".join(args) and full is None:
+                rows.append((name, None, True))
+                continue
+            out_dir = tmp / f"script-{name}"
+            out_dir.mkdir()
+            argv = [a.format(d=out_dir, listener=listener, full=full) for a in args]
+            r = run_case(argv, out_dir, address_space, timeout)
+            if full is not None and "{full}" in " ".join(args):
+                r["written"] = sorted(p.name for p in full.rglob("*") if p.name != "filler")
+            ok = (r["code"] == code and r["lines"] == 1 and r["longest"] <= LINE_MAX and not r["traceback"]
+                  and not r["written"])
+            rows.append((name, r, ok))
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--as", dest="address_space", type=int, default=2 << 30,
@@ -103,14 +191,27 @@ def main(argv: list[str] | None = None) -> int:
                   and not r["written"])
             bad += not ok
             rows.append((path.name, r, ok))
-    print(f"| file | exit | seconds | peak RSS [MiB] | stderr lines | longest line | ok |")
+        scripted = [] if args.files else scripted_rows(Path(tmp), args.address_space, args.timeout)
+    print("| file | exit | seconds | peak RSS [MiB] | stderr lines | longest line | ok |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | --- |")
     for name, r, ok in rows:
         print(f"| {name} | {r['code']} | {r['seconds']:.2f} | {r['rss_mib']:.0f} | {r['lines']} | "
               f"{r['longest']} | {'yes' if ok else 'NO: ' + ' '.join(r['stderr'].split())[:120]} |")
+    if scripted:
+        print()
+        print("| scripted case | exit | seconds | peak RSS [MiB] | stderr lines | longest line | ok |")
+        print("| --- | ---: | ---: | ---: | ---: | ---: | --- |")
+        for name, r, ok in scripted:
+            if r is None:
+                print(f"| {name} | - | - | - | - | - | skipped: needs root to mount a tmpfs |")
+                continue
+            bad += not ok
+            print(f"| {name} | {r['code']} | {r['seconds']:.2f} | {r['rss_mib']:.0f} | {r['lines']} | "
+                  f"{r['longest']} | {'yes' if ok else 'NO: ' + ' '.join(r['stderr'].split())[:120]} |")
+        rows = rows + [row for row in scripted if row[1] is not None]
     rs = [r for _, r, _ in rows]
     print()
-    print(f"{len(rows)} files, {len(rows) - bad} pass; under prlimit --as={args.address_space}: "
+    print(f"{len(rows)} cases, {len(rows) - bad} pass; under prlimit --as={args.address_space}: "
           f"max {max(r['seconds'] for r in rs):.2f} s, max peak RSS {max(r['rss_mib'] for r in rs):.0f} MiB, "
           f"longest error line {max(r['longest'] for r in rs)} characters")
     return 0 if bad == 0 else 1
