@@ -14,6 +14,12 @@ given by their number of digits.  :class:`HugeInt` stands for an integer
 literal too long to convert (Python refuses ``int()`` of more than 4300
 digits); the YAML and JSON readers return it instead of raising, so that
 the field holding it can be named.
+
+:func:`load_json` parses a JSON document read by :func:`read_text` in
+bounded memory: it counts the lists and objects (``[`` and ``{``) before
+anything is built and refuses more than ``max_containers`` of them (a file
+padded with millions of empty ``[]`` would otherwise cost some 50 times
+its size), and refuses an object that repeats a key, naming the key.
 """
 
 from __future__ import annotations
@@ -24,13 +30,63 @@ import os
 import stat
 from pathlib import Path
 
-__all__ = ["ECHO_LIMIT", "HugeInt", "UnreadableFile", "echo", "echo_key", "echo_path", "read_text"]
+__all__ = ["ECHO_LIMIT", "MAX_JSON_CONTAINERS", "HugeInt", "JsonRefused", "UnreadableFile", "echo", "echo_key",
+           "echo_path", "load_json", "read_text"]
 
 ECHO_LIMIT = 80
 """The longest rendering of a received value in an error message [characters]."""
 
+MAX_JSON_CONTAINERS = 2_000_000
+"""The most lists and objects :func:`load_json` builds by default.
+
+A plan of m robots and K steps has about (K + 1) (m + 1) of them: two
+million admit 1000 robots over 1999 steps (or 100 000 steps of 19 robots),
+and cost at most some 250 MB once built.
+"""
+
+
 class UnreadableFile(ValueError):
     """A file that is not read; ``str()`` is one short line saying why."""
+
+
+class JsonRefused(ValueError):
+    """A JSON document that is not loaded: ``where`` is ``line L``, ``file`` or the repeated key."""
+
+    def __init__(self, where: str, reason: str):
+        self.where, self.reason = where, reason
+        super().__init__(f"{where}: {reason}")
+
+
+def load_json(text: str, *, max_containers: int = MAX_JSON_CONTAINERS, parse_int=None):
+    """The JSON document in ``text``, or :class:`JsonRefused` naming where and why.
+
+    Before parsing, refuses a document with more than ``max_containers``
+    lists and objects (``[`` and ``{`` are counted wherever they are, so
+    ones inside strings count too: the bound is only ever stricter).  While
+    parsing, refuses an object that repeats a key (``where`` is the key as
+    a field name).  ``parse_int`` is passed to :func:`json.loads`.
+    """
+    import json
+
+    containers = text.count("[") + text.count("{")
+    if containers > max_containers:
+        raise JsonRefused("file", f"holds {containers} lists and objects, more than the {max_containers} "
+                                  "a file may have")
+
+    def pairs(items):
+        d = {}
+        for key, value in items:
+            if key in d:
+                raise JsonRefused(echo_key(key), "is given twice (a JSON object may not repeat a key)")
+            d[key] = value
+        return d
+
+    try:
+        return json.loads(text, parse_int=parse_int, object_pairs_hook=pairs)
+    except json.JSONDecodeError as exc:
+        raise JsonRefused(f"line {exc.lineno}", f"invalid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise JsonRefused("file", "nests lists or objects too deeply") from None
 
 
 class HugeInt:

@@ -47,6 +47,9 @@ _S2_MAX = 10.0 / math.sqrt(3.0)  # max of |s''(u)|, at u = (3 -+ sqrt 3) / 6
 
 MAX_PLAN_BYTES = 64 << 20
 """The largest plan file read [bytes] (64 MiB)."""
+PLAN_KEYS = frozenset({"scenario", "seed", "radius", "margin", "profile", "durations", "waypoints",
+                       "max_speed", "max_accel", "stats"})
+"""The top-level keys of a plan file (what :meth:`Plan.to_json` and ``swarmform plan`` write)."""
 MAX_STEPS = 100_000
 """The most steps a plan file may hold."""
 MAX_ROBOTS = 1000
@@ -325,11 +328,12 @@ def read_plan_file(path: str | Path) -> tuple["Plan", dict]:
     strings or booleans, of absolute value <= :data:`MAX_COORDINATE`);
     optionally ``profile`` (``minimum_jerk``), ``max_speed`` and
     ``max_accel`` (numbers > 0), ``seed`` (an integer in [0, 2^63 - 1]) and
-    ``stats`` (the PlanStats fields, each of its type).  Unknown keys are
-    ignored.  Raises :class:`PlanFileError` naming the file, the field and
+    ``stats`` (the PlanStats fields, each of its type).  A key may not be
+    repeated; a top-level key not in :data:`PLAN_KEYS` is refused; at most
+    :data:`planner.inputfile.MAX_JSON_CONTAINERS` lists and objects.  Raises :class:`PlanFileError` naming the file, the field and
     the reason, with the value received cut to about 80 characters.
     """
-    from .inputfile import UnreadableFile, read_text
+    from .inputfile import JsonRefused, UnreadableFile, echo_key, load_json, read_text
 
     source = str(path)
     try:
@@ -337,11 +341,15 @@ def read_plan_file(path: str | Path) -> tuple["Plan", dict]:
     except UnreadableFile as exc:
         raise PlanFileError(source, "file", str(exc)) from None
     try:
-        d = json.loads(text, parse_int=_json_int)
-    except json.JSONDecodeError as exc:
-        raise PlanFileError(source, f"line {exc.lineno}", f"invalid JSON: {exc.msg}") from None
-    except RecursionError:
-        raise PlanFileError(source, "file", "nests lists or objects too deeply") from None
+        d = load_json(text, parse_int=_json_int)
+    except JsonRefused as exc:
+        raise PlanFileError(source, exc.where, exc.reason) from None
+    del text
+    if isinstance(d, dict):
+        for key in d:
+            if key not in PLAN_KEYS:
+                raise PlanFileError(source, echo_key(key), "is not a plan file key (known: "
+                                    + ", ".join(sorted(PLAN_KEYS)) + ")")
     p = _plan_from_dict(Plan, d, source)
     extra = {}
     if "seed" in d:

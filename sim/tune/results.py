@@ -10,9 +10,18 @@ Anything else -- a notes file, a directory, a FIFO, a device, a symbolic
 link -- is refused with a :class:`~sim.tune.spec.TuneError` (exit 2), and
 the file is not written, truncated or even opened for writing.
 
+A results file is judged as it is read, line by line, in bounded memory:
+it may hold at most :data:`MAX_RESULTS_BYTES` (checked on the open file
+before anything is read) and each line at most :data:`MAX_ROW_BYTES`; the
+first line that is not a result row is refused at once, naming the file,
+the line number and the reason.
+
 Only the process that drives the sweep writes the file, each row as one
-``write`` followed by an ``fsync``, so an interrupted sweep keeps every
-finished row.  The summary files beside it (``NAME.md``, ``NAME.html``,
+``write`` of the whole encoded line followed by an ``fsync``, so an
+interrupted sweep keeps every finished row.  If a write fails (a full disk:
+``ENOSPC``), the file is cut back to its size before that row, so no torn
+row is left, and the sweep stops with a :class:`~sim.tune.spec.TuneError`
+(exit 2) ``PATH: no space left on device``.  The summary files beside it (``NAME.md``, ``NAME.html``,
 ``NAME-*.png``) are replaced atomically.
 """
 
@@ -26,10 +35,16 @@ from pathlib import Path
 
 from .spec import KEY_FIELDS, RunSpec, TuneError
 
-__all__ = ["ResultsFile", "check_output", "read_results", "row_key", "summary_path"]
+__all__ = ["MAX_RESULTS_BYTES", "MAX_ROW_BYTES", "ResultsFile", "check_output", "read_results", "row_key", "summary_path"]
 
 ROW_PREFIX = b'{"scenario": '
 """How every row written by a sweep begins (``json.dumps`` of a row: its first key is the scenario)."""
+
+MAX_RESULTS_BYTES = 256 << 20
+"""The largest results file a sweep appends to or summarizes [bytes] (some 250 000 rows)."""
+
+MAX_ROW_BYTES = 1 << 20
+"""The longest line of a results file [bytes]; a row written by a sweep is about 1 KB."""
 
 _CHUNK = 1 << 20
 _SUMMARY_SUFFIXES = (".md", ".html")
@@ -39,20 +54,31 @@ def read_results(path: str | Path) -> list[dict]:
     """The rows of a results file, in file order.
 
     A torn last line (a sweep killed while writing) and lines that are not
-    result rows are left out.  Raises :class:`TuneError` when the file
-    cannot be read.
+    result rows are left out.  Read line by line; raises :class:`TuneError`
+    when the file cannot be read, is larger than :data:`MAX_RESULTS_BYTES`
+    or has a line longer than :data:`MAX_ROW_BYTES`.
     """
     path = Path(path)
     try:
-        data = path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as exc:
         raise TuneError(f"{path}: cannot read the results file: {exc.strerror or exc}") from None
-    rows = []
-    for line in data[: data.rfind(b"\n") + 1].splitlines():
-        row = _row(line)
-        if row is not None:
-            rows.append(row)
-    return rows
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise TuneError(f"{path}: cannot read the results file: not a regular file")
+        _check_size(path, st.st_size, "")
+        rows = []
+        for _, line, complete in _lines(path, fd, ""):
+            if complete:
+                row = _row(line)
+                if row is not None:
+                    rows.append(row)
+        return rows
+    except OSError as exc:
+        raise TuneError(f"{path}: cannot read the results file: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
 
 
 def row_key(row: dict) -> tuple:
@@ -90,7 +116,7 @@ def check_output(path: str | Path) -> Path:
             raise _open_error(path, exc) from None
         try:
             _check_kind(path, os.fstat(fd))
-            _scan(path, _read_all(fd))
+            _scan(path, fd)
         finally:
             os.close(fd)
     for suffix in _SUMMARY_SUFFIXES:
@@ -124,12 +150,11 @@ class ResultsFile:
         try:
             _check_kind(path, os.fstat(self._fd))
             self._lock()
-            data = _read_all(self._fd)
-            self.rows, end = _scan(path, data)
-            if end < len(data):
+            self.rows, end, size = _scan(path, self._fd)
+            if end < size:
                 os.ftruncate(self._fd, end)
                 os.fsync(self._fd)
-                print(f"swarmform tune: {path}: cut off a torn last line ({len(data) - end} bytes)", file=log)
+                print(f"swarmform tune: {path}: cut off a torn last line ({size - end} bytes)", file=log)
         except BaseException:
             os.close(self._fd)
             raise
@@ -152,14 +177,33 @@ class ResultsFile:
         return spec.key in self.keys
 
     def append(self, row: dict) -> None:
-        """Add one row as one line: a single write (completed if short), then fsync."""
+        """Add one row as one line: one ``os.write`` of the whole line, then fsync.
+
+        A short write is completed; a failed one (a full disk, an I/O error)
+        cuts the file back to its size before the row, so it never ends in
+        a torn row.  ``ENOSPC`` becomes :class:`TuneError`
+        ``PATH: no space left on device`` (exit 2).
+        """
         data = (json.dumps(row, allow_nan=False, ensure_ascii=False) + "\n").encode("utf-8")
         if not data.startswith(ROW_PREFIX):
             raise ValueError(f"a row must begin with its scenario, got {data[:40]!r}")
-        done = os.write(self._fd, data)
-        while done < len(data):
-            done += os.write(self._fd, data[done:])
-        os.fsync(self._fd)
+        if len(data) > MAX_ROW_BYTES:
+            raise ValueError(f"a row may have at most {MAX_ROW_BYTES} bytes, got {len(data)}")
+        before = os.fstat(self._fd).st_size
+        try:
+            done = os.write(self._fd, data)
+            while done < len(data):
+                done += os.write(self._fd, data[done:])
+            os.fsync(self._fd)
+        except OSError as exc:
+            try:
+                os.ftruncate(self._fd, before)
+                os.fsync(self._fd)
+            except OSError:
+                pass
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+                raise TuneError(f"{self.path}: no space left on device") from None
+            raise
         self.rows.append(row)
         self.keys.add(row_key(row))
 
@@ -194,29 +238,71 @@ def _open_error(path: Path, exc: OSError) -> TuneError:
     return TuneError(f"--output: {path}: cannot open the results file: {exc.strerror or exc}")
 
 
-def _read_all(fd: int) -> bytes:
+def _check_size(path: Path, size: int, prefix: str = "--output: ") -> None:
+    if size > MAX_RESULTS_BYTES:
+        raise TuneError(f"{prefix}{path}: is {size / (1 << 20):.4g} MiB, larger than the "
+                        f"{MAX_RESULTS_BYTES >> 20} MiB a results file may have")
+
+
+def _lines(path: Path, fd: int, prefix: str = "--output: "):
+    """``(number, line, complete)`` of the file, from its start, never holding more than a line and a chunk.
+
+    The last item has ``complete`` false when the file does not end in a
+    newline (``line`` is then what follows the last newline).  Refuses a
+    line longer than :data:`MAX_ROW_BYTES` and a file that grows past
+    :data:`MAX_RESULTS_BYTES` while it is read.
+    """
     os.lseek(fd, 0, os.SEEK_SET)
-    chunks = []
+    pending = b""
+    n = total = 0
     while chunk := os.read(fd, _CHUNK):
-        chunks.append(chunk)
-    return b"".join(chunks)
+        total += len(chunk)
+        if total > MAX_RESULTS_BYTES:
+            _check_size(path, total, prefix)
+        start = 0
+        while (nl := chunk.find(b"\n", start)) >= 0:
+            n += 1
+            line = pending + chunk[start:nl] if pending else chunk[start:nl]
+            pending = b""
+            if len(line) > MAX_ROW_BYTES:
+                _too_long(path, n, prefix)
+            yield n, line, True
+            start = nl + 1
+        pending += chunk[start:]
+        if len(pending) > MAX_ROW_BYTES:
+            _too_long(path, n + 1, prefix)
+    if pending:
+        yield n + 1, pending, False
 
 
-def _scan(path: Path, data: bytes) -> tuple[list[dict], int]:
-    """The rows of a results file and where its complete lines end; refuse a file that is not one."""
-    end = data.rfind(b"\n") + 1
-    tail = data[end:]
+def _too_long(path: Path, n: int, prefix: str):
+    raise TuneError(f"{prefix}{path}: is not a results file (line {n} is longer than the "
+                    f"{MAX_ROW_BYTES >> 20} MiB a result row may have); give a new file or one a sweep wrote")
+
+
+def _scan(path: Path, fd: int) -> tuple[list[dict], int, int]:
+    """The rows of an open results file, where its complete lines end and its size.
+
+    Judged line by line: a file that is not a results file is refused at
+    its first wrong line, with only that line read past.
+    """
+    _check_size(path, os.fstat(fd).st_size)
     rows = []
-    for n, line in enumerate(data[:end].split(b"\n")[:-1], 1):
+    end = size = 0
+    for n, line, complete in _lines(path, fd):
+        size += len(line) + complete
+        if not complete:
+            if not line.startswith(ROW_PREFIX[: len(line)]):
+                raise TuneError(f"--output: {path}: is not a results file (its last line is not a result row); "
+                                "give a new file or one a sweep wrote")
+            break
         row = _row(line)
         if row is None:
             raise TuneError(f"--output: {path}: is not a results file (line {n} is not a result row); "
                             "give a new file or one a sweep wrote")
         rows.append(row)
-    if tail and not tail.startswith(ROW_PREFIX[: len(tail)]):
-        raise TuneError(f"--output: {path}: is not a results file (its last line is not a result row); "
-                        "give a new file or one a sweep wrote")
-    return rows, end
+        end = size
+    return rows, end, size
 
 
 def _row(line: bytes) -> dict | None:
