@@ -272,7 +272,11 @@ def _numeric_text_hint(value) -> str:
             float(value)
         except ValueError:
             return ""
-        return " (text; write a number such as 1.0e+3 without quotes)"
+        if re.fullmatch(r"\s*[-+]?(?:(?:0|[1-9][0-9]*)(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?\s*", value):
+            return " (text; write a number such as 1.0e+3 without quotes)"
+        if value.strip().lower().lstrip("+-") in ("inf", "infinity", "nan"):
+            return ""
+        return " (numbers are written in decimal only: 1000, 0.5, 1.0e+3)"
     return ""
 
 

@@ -21,6 +21,8 @@ an integer literal of more than 40 characters becomes a
 
 from __future__ import annotations
 
+import re
+
 import yaml
 
 from planner.inputfile import HugeInt, echo
@@ -124,5 +126,20 @@ def _construct_int(loader, node):
     return yaml.SafeLoader.construct_yaml_int(loader, node)
 
 
+# Numbers are written in decimal, with an optional fraction and exponent, and nothing else:
+# YAML 1.1 also reads 017 as 15 (octal), 0x1F as 31, 1_000 as 1000 and 1:30 as 90
+# (sexagesimal), which changes a value without a word, and it reads 1e3 as text.  Here
+# those forms stay text, so the field that receives one says it wants a number.
+_INT, _FLOAT = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+_StrictLoader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT, _FLOAT)]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_StrictLoader.add_implicit_resolver(_INT, re.compile(r"^[-+]?(?:0|[1-9][0-9]*)$"), list("-+0123456789"))
+_StrictLoader.add_implicit_resolver(
+    _FLOAT,
+    re.compile(r"^(?:[-+]?(?:(?:0|[1-9][0-9]*)(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"),
+    list("-+0123456789."),
+)
 _StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 _StrictLoader.add_constructor("tag:yaml.org,2002:int", _construct_int)

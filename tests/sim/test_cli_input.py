@@ -64,6 +64,12 @@ LINE_MAX = 200
 
 # file -> (the field its one-line message names, a piece of the reason)
 CORPUS = {
+    "seed-octal.yaml": ("seed", "got string '017'"),
+    "seed-sexagesimal.yaml": ("seed", "got string '1:30'"),
+    "count-hex.yaml": ("robots.count", "got string '0x1F'"),
+    "max-speed-underscore.yaml": ("robots.max_speed", "got string '1_000' (numbers are written in decimal only"),
+    "plan-duplicate-key.json": ("radius", "is given twice"),
+    "plan-unknown-key.json": ("colour", "is not a plan file key (known: durations"),
     "text-no-skeleton.yaml": ("target.formation.text", "'.' traces to a single point, no line to place robots"),
     "text-no-skeleton-count.yaml": ("target.formation.text", "'.' traces to a single point"),
     "text-number.yaml": ("target.formation.text", 'must be a string, got number 12345 (write it in quotes'),
@@ -376,6 +382,8 @@ OPTION_CASES = {
     "show-output-jpg": (["show", str(FIG1), "-o", "{d}/x.jpg"], "show writes PNG images only"),
     "set-anchor": (["run", str(FIG1), "--no-render", "--out", "{d}", "--set", "robots.margin=&a 0.1"],
                    "--set robots.margin: value '&a 0.1': anchors (&name) are not allowed"),
+    "set-sexagesimal": (["run", str(FIG1), "--no-render", "--out", "{d}", "--set", "planner.time_limit=1:00"],
+                        "--set planner.time_limit: must be a number in (0, 3600], got string '1:00'"),
     "set-tag": (["run", str(FIG1), "--no-render", "--out", "{d}", "--set", "robots.margin=!!python/name:os.system"],
                 "is not allowed (only YAML's own"),
     "argv-nothing": ([], "required: COMMAND"),

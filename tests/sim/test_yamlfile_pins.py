@@ -87,7 +87,28 @@ def test_integers_longer_than_forty_characters_become_huge_ints():
     assert isinstance(n, HugeInt) and n.digits == 41
     n = load_yaml("n: -" + "1" * 5000)["n"]
     assert isinstance(n, HugeInt) and (n.negative, n.digits) == (True, 5000)
-    assert load_yaml("n: 0x1F") == {"n": 31}
+    assert load_yaml("n: 0x1F") == {"n": "0x1F"}  # not a decimal number: text
+
+
+@pytest.mark.parametrize("text, silently", [
+    ("017", 15), ("0x1F", 31), ("1_000", 1000), ("1:30", 90), ("0o17", "0o17"), ("00.5", 0.5), ("1:00", 60),
+])
+def test_only_decimal_and_exponent_forms_are_numbers(text, silently):
+    """YAML 1.1's octal, hex, underscore and sexagesimal forms stay text, so the field refuses them."""
+    import yaml
+
+    assert load_yaml(f"v: {text}") == {"v": text}
+    # the negative control: PyYAML's own safe loader changes these values without a word
+    if not isinstance(silently, str):
+        assert yaml.safe_load(f"v: {text}") == {"v": silently}
+
+
+@pytest.mark.parametrize("text, value", [
+    ("0", 0), ("-7", -7), ("+7", 7), ("12", 12), ("0.5", 0.5), (".5", 0.5), ("1.", 1.0), ("1e3", 1000.0),
+    ("-2.5E-3", -0.0025), ("1.0e+3", 1000.0), (".inf", float("inf")), ("-.inf", float("-inf")),
+])
+def test_decimal_and_exponent_forms_are_numbers(text, value):
+    assert load_yaml(f"v: {text}") == {"v": value}
 
 
 def test_syntax_errors_name_line_column_and_problem():
