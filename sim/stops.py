@@ -10,6 +10,8 @@ The command then says one line and exits ``128 + signal number`` (SIGHUP
 129, SIGQUIT 131, SIGTERM 143; SIGINT stays 130), the codes a shell
 reports for a process killed by that signal.  A Python-level handler also
 keeps pygame's fatal-signal "parachute" from printing a dump for SIGQUIT.
+A signal that lands while a module is being imported is raised as soon as
+the import is over (checked every 50 ms by SIGALRM).
 """
 
 from __future__ import annotations
@@ -39,8 +41,34 @@ class Stopped(KeyboardInterrupt):
         return 128 + self.signum
 
 
-def _raise(signum, _frame) -> None:
+_RETRY_S = 0.05
+_pending: list[int] = []
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` runs inside an import (where an exception would break a module's init)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _raise(signum, frame) -> None:
+    # An exception raised while a C extension initialises becomes "ImportError:
+    # initialization failed" and can leave the interpreter unable to finish; so a
+    # signal that lands in an import is raised once the import is over (SIGALRM polls).
+    if _importing(frame):
+        _pending.append(signum)
+        signal.setitimer(signal.ITIMER_REAL, _RETRY_S)
+        return
+    _pending.clear()
     raise Stopped(signum)
+
+
+def _retry(_signum, frame) -> None:
+    if _pending:
+        _raise(_pending.pop(), frame)
 
 
 @contextmanager
@@ -52,8 +80,11 @@ def stop_handlers() -> Iterator[None]:
     old = {}
     for sig in STOP_SIGNALS:
         old[sig] = signal.signal(sig, _raise)
+    old[signal.SIGALRM] = signal.signal(signal.SIGALRM, _retry)
     try:
         yield
     finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        _pending.clear()
         for sig, handler in old.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
