@@ -21,7 +21,7 @@ from pathlib import Path
 from ..media import atomic_path
 from .blocks import Block, Heading, markdown
 from .plots import contact_plot, heatmap
-from .results import read_results
+from .results import SUMMARY_MARK, read_results
 from .robustness import robustness_blocks, robustness_cells
 from .spec import TuneError
 from .summary import (_groups, _info, _sort_key, latest, num_cell, paper_blocks, scenario_blocks, seeds_text,
@@ -59,7 +59,7 @@ def write_summary(results_path: str | Path, rows: list[dict] | None = None, *, k
     text = markdown(blocks)
     md = results_path.with_suffix(".md")
     with atomic_path(md) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+        tmp.write_text(f"{SUMMARY_MARK}\n{text}", encoding="utf-8")
     images = _heatmaps(results_path, rows) + _contact_plots(results_path, rows)
     page = _write_page(results_path, rows, sections, images)
     return text, [md, *(p for p, _ in images), page]
@@ -116,6 +116,7 @@ def _contact_plots(results_path: Path, rows: list[dict]) -> list[tuple[Path, str
 
 def _write_page(results_path: Path, rows: list[dict], sections, images) -> Path:
     from jinja2 import Environment, PackageLoader, select_autoescape
+    from markupsafe import Markup
 
     env = Environment(loader=PackageLoader("sim.tune", "templates"), autoescape=select_autoescape(["j2", "html"]),
                       trim_blocks=True, lstrip_blocks=True)
@@ -129,6 +130,7 @@ def _write_page(results_path: Path, rows: list[dict], sections, images) -> Path:
             f"({', '.join(scenarios[:6])}{', ...' if len(scenarios) > 6 else ''}), {seeds_text(seeds)}; "
             f"{sum(bool(r['found']) for r in runs)} found a plan.")
     html = env.get_template("index.html.j2").render(
+        mark=Markup(SUMMARY_MARK),
         title=f"Tuning sweep: {results_path.name}",
         meta=meta,
         results_name=results_path.name,

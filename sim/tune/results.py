@@ -123,7 +123,30 @@ def check_output(path: str | Path) -> Path:
         side = summary_path(path, suffix)
         if side.is_dir() and not side.is_symlink():
             raise TuneError(f"--output: {side}: is a directory; the sweep writes its summary there")
+        if os.path.lexists(side) and not is_our_summary(side):
+            raise TuneError(f"--output: {side}: not written by swarmform tune, so not replaced by its summary; "
+                            "move it away or choose another -o")
     return path
+
+
+SUMMARY_MARK = "<!-- swarmform tune summary: replaced by the next summary of its results file -->"
+"""The first line of every ``NAME.md`` (the line after ``<!DOCTYPE html>`` of ``NAME.html``)
+that the sweep writes: only a file that starts so is ever replaced."""
+
+
+def is_our_summary(path: Path) -> bool:
+    """Whether ``path`` is a regular file (not a link) whose first lines hold :data:`SUMMARY_MARK`."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError:
+        return False
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return False
+        head = os.read(fd, 512)
+    finally:
+        os.close(fd)
+    return SUMMARY_MARK.encode() in head
 
 
 class ResultsFile:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -267,3 +268,32 @@ def test_load_json_refuses_a_repeated_key_naming_it():
         load_json('{"radius": 1,\n "radius": 2}')
     assert info.value.where == "radius"
     assert load_json('{"radius": 1, "stats": {"g": 1}}') == {"radius": 1, "stats": {"g": 1}}  # negative control
+
+
+# ----------------------------------------------------------------------------
+# the summary beside the results: only files the sweep wrote are replaced
+
+
+def test_tune_refuses_to_replace_a_users_own_notes(tmp_path):
+    """``tune -o notes.jsonl`` beside the user's notes.md: exit 2 before any run, the file untouched."""
+    import subprocess
+
+    fig2 = Path(__file__).resolve().parents[2] / "scenarios" / "paper" / "fig2-random-to-C.yaml"
+    mine = tmp_path / "notes.md"
+    mine.write_text("# my notes\nkeep me\n")
+    argv = [sys.executable, "-m", "sim.cli", "tune", str(fig2), "--g", "1", "--q", "20", "--seeds", "1",
+            "-o", str(tmp_path / "notes.jsonl")]
+    r = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "notes.md: not written by swarmform tune, so not replaced" in lines[0], lines
+    assert mine.read_text() == "# my notes\nkeep me\n"
+    assert not (tmp_path / "notes.jsonl").exists()
+    # the negative control: without the user's file the sweep writes its own, and then may replace it
+    mine.unlink()
+    r = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "notes.md").read_text().startswith("<!-- swarmform tune summary")
+    assert "<!-- swarmform tune summary" in (tmp_path / "notes.html").read_text()[:300]
+    r = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr

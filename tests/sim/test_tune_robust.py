@@ -14,6 +14,7 @@ import sim.overrides
 from sim.cli import main
 from sim.overrides import OverrideError, apply_overrides, combinations, parse_set
 from sim.scenario import ScenarioError, read_scenario
+from sim.tune.results import SUMMARY_MARK
 from sim.tune import (margin_needed, read_results, read_variants, robustness_blocks, robustness_cells, grid, sweep,
                       wilson_interval, write_summary)
 from sim.tune.blocks import markdown
@@ -153,6 +154,8 @@ def test_a_set_sweep_with_physics_records_settings_and_summarises(tmp_path, caps
     assert all(r["sim_contacts"] == 0 for r in rows if r["settings"]["sim.force_limit"] == 200)
     assert all(r["worker"].startswith("local:") for r in rows)
     md = out.with_suffix(".md").read_text()
+    assert md.startswith(SUMMARY_MARK + "\n")  # the mark that lets a later summary replace it
+    md = md.removeprefix(SUMMARY_MARK + "\n")
     assert md.rstrip() in printed
     assert "## Robustness" in md and "### fig2-random-to-C: sim.force_limit, robots.margin" in md
     assert "| 200 | 0.1 | 1 | 100% (1/1) |" in md and "| 0.0% [0.0%, 79.3%] |" in md
