@@ -17,7 +17,6 @@ from pathlib import Path
 import pytest
 
 import sim.tune.results as results_mod
-import sim.tune.spec as tune_spec
 from planner.inputfile import JsonRefused, load_json
 from sim.cli import main
 from sim.tune import TuneError, read_results
@@ -35,17 +34,6 @@ def _line(**changes) -> bytes:
     return (json.dumps({**ROW, **changes}) + "\n").encode()
 
 
-@pytest.fixture
-def marker(tmp_path, monkeypatch):
-    path = tmp_path / "a-run-started"
-    real = tune_spec.run_one
-
-    def run_one(spec):
-        path.touch()
-        return real(spec)
-
-    monkeypatch.setattr(tune_spec, "run_one", run_one)
-    return path
 
 
 def _tune(argv, capsys):

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pytest
 
-import sim.tune.spec as tune_spec
 from sim.cli import main
 from sim.scenario import read_scenario
 from sim.tune import TuneError, grid, read_results, sweep
@@ -24,18 +23,6 @@ FIG2 = ROOT / "scenarios" / "paper" / "fig2-random-to-C.yaml"
 ONE_RUN = ["--g", "1", "--q", "20", "--seeds", "1", "--workers", "1", "--no-progress"]
 
 
-@pytest.fixture
-def marker(tmp_path, monkeypatch):
-    """A file that any run of a sweep creates (the hook is inherited by the forked workers)."""
-    path = tmp_path / "a-run-started"
-    real = tune_spec.run_one
-
-    def run_one(spec):
-        path.touch()
-        return real(spec)
-
-    monkeypatch.setattr(tune_spec, "run_one", run_one)
-    return path
 
 
 def _tune(argv, capsys) -> tuple[int, str, str]:
