@@ -13,7 +13,8 @@ A file passes when it exits 2 with one line of at most 200 characters, no
 traceback and nothing written.  A second table runs the cases no file can
 hold (:data:`SCRIPTED`: ``--set`` values with anchors or tags, a ``show -o``
 suffix that is not ``.png``, a Dask scheduler that accepts and stays silent,
-exit 4, and a full disk under ``run --out`` and ``show -o``) with the same
+exit 4, a 50 MB results file whose first line is wrong, a sparse 2 GiB one, a plan
+padded to 60 MB, and a full disk under ``run --out`` and ``show -o``) with the same
 checks and their own exit codes.  The test suite checks the same things
 (``tests/sim/test_cli_input.py``); this prints the measured figures.
 """
@@ -101,9 +102,31 @@ SCRIPTED = {
     "show-jpg-suffix": (["show", FIG1, "-o", "{d}/x.jpg"], 2),
     "silent-scheduler": (["tune", FIG1, "--g", "2", "--q", "50", "--seeds", "1", "--scheduler", "tcp://{listener}",
                           "-o", "{d}/r.jsonl"], 4),
+    "results-bad-first-line-50MB": (["tune", "--summarize", "{d}/bad.jsonl"], 2),
+    "results-sparse-2GiB": (["tune", FIG1, "--g", "2", "--q", "50", "--seeds", "1", "-o", "{d}/big.jsonl"], 2),
+    "plan-padded-60MB": (["run", "tests/data/plan-base.yaml", "--plan", "{d}/pad.json", "--no-render",
+                          "--out", "{d}/o"], 2),
     "full-disk-run": (["run", FIG1, "--out", "{full}/o"], 2),
     "full-disk-show": (["show", FIG1, "-o", "{full}/s.png"], 2),
 }
+
+
+def _prepare(name: str, d: Path) -> None:
+    """The input files a scripted case reads, made in its folder (they do not count as written)."""
+    if name == "results-bad-first-line-50MB":
+        with open(d / "bad.jsonl", "w") as f:
+            f.write("this is not a result row\n")
+            row = '{"scenario": "x"}\n'
+            f.write(row * ((50 << 20) // len(row)))
+    elif name == "results-sparse-2GiB":
+        with open(d / "big.jsonl", "wb") as f:
+            f.truncate(2 << 30)
+    elif name == "plan-padded-60MB":
+        with open(d / "pad.json", "w") as f:
+            f.write('{"radius": 1.0, "margin": 0.1, "durations": [10.0], '
+                    '"waypoints": [[[5, 5], [5, 35]], [[35, 5], [35, 35]]], "stats": {"pad": [')
+            f.write("[]," * ((60 << 20) // 3))
+            f.write("[]]}}")
 
 
 @contextlib.contextmanager
@@ -160,8 +183,14 @@ def scripted_rows(tmp: Path, address_space: int, timeout: float) -> list[tuple[s
                 continue
             out_dir = tmp / f"script-{name}"
             out_dir.mkdir()
+            _prepare(name, out_dir)
+            given = {p.name: p.stat().st_size for p in out_dir.iterdir()}
             argv = [a.format(d=out_dir, listener=listener, full=full) for a in args]
             r = run_case(argv, out_dir, address_space, timeout)
+            kept = all((out_dir / n).exists() and (out_dir / n).stat().st_size == size for n, size in given.items())
+            r["written"] = [n for n in r["written"] if n not in given] + ([] if kept else ["(an input changed)"])
+            for n in given:
+                (out_dir / n).unlink(missing_ok=True)
             if full is not None and "{full}" in " ".join(args):
                 r["written"] = sorted(p.name for p in full.rglob("*") if p.name != "filler")
             ok = (r["code"] == code and r["lines"] == 1 and r["longest"] <= LINE_MAX and not r["traceback"]
