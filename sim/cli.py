@@ -282,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
         if exc.errno != errno.ENOSPC:
             return _internal(exc, debug)
         where = exc.filename or getattr(args, "output", None) or getattr(args, "out", None) or "the output"
-        _say(f"swarmform: error: no space left on device: {where}")
+        _say(f"swarmform: error: {where}: no space left on device")
         return EXIT_INPUT
     except Exception as exc:  # noqa: BLE001 - anything else is a defect: one line, exit 3
         return _internal(exc, debug)

@@ -391,7 +391,7 @@ def test_a_full_disk_is_exit_2_naming_the_path(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(media, "write_png", full)
     assert main(["show", str(fig1), "-o", str(target)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"swarmform: error: no space left on device: {target}"]
+    assert err == [f"swarmform: error: {target}: no space left on device"]
     assert list(tmp_path.iterdir()) == []
     # the negative control: another OSError is still an internal error (exit 3)
     def broken(path, image):
