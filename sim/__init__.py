@@ -23,7 +23,7 @@ run`` does: plan, check, execute, render, write ``NAME.json``, the video and
 ['demo.gif']
 """
 
-from importlib import import_module
+from .lazy import lazy_exports
 
 # name -> the module that defines it; imported on first use, so that the
 # command line starts without loading the physics, the planner or pygame.
@@ -49,13 +49,4 @@ _WHERE = {
 __all__ = sorted(_WHERE, key=str.lower)
 
 
-def __getattr__(name: str):
-    if name in _WHERE:
-        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)

@@ -28,7 +28,7 @@ Example (about a second on two cores)::
     write_summary("media/fig2.jsonl")             # media/fig2.md, .html and the heatmap
 """
 
-from importlib import import_module
+from ..lazy import lazy_exports
 
 # name -> the module that defines it; imported on first use, so that building
 # the command line (``swarmform --help``) loads neither the planner nor Dask.
@@ -81,13 +81,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    if name in _WHERE:
-        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)
