@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from planner.problem import Circle, Polygon, Problem
-from sim.media import has_mp4, write_gif, write_mp4, write_video
-from sim.params import RenderParams
-from sim.render import playback_speedup, render_frames
+from sim.output.media import has_mp4, write_gif, write_mp4, write_video
+from sim.scenario.params import RenderParams
+from sim.output.render import playback_speedup, render_frames
 
 
 @dataclass(frozen=True)

@@ -35,8 +35,8 @@ import numpy as np
 from planner.plan import Plan
 from planner.problem import Circle, Polygon, Problem
 from planner.validate import check_plan
-from sim.physics import execute
-from sim.params import Failure, Noise, Pushes, SimParams
+from sim.execute.physics import execute
+from sim.scenario.params import Failure, Noise, Pushes, SimParams
 
 __all__ = ["DISTURBED", "cell_problem", "disturbed_params", "main"]
 

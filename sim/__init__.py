@@ -28,22 +28,22 @@ from .lazy import lazy_exports
 # name -> the module that defines it; imported on first use, so that the
 # command line starts without loading the physics, the planner or pygame.
 _WHERE = {
-    "Contact": "physics",
-    "SimReport": "physics",
-    "execute": "physics",
-    "write_video": "media",
-    "RenderParams": "params",
-    "SimParams": "params",
-    "draw_scenario": "render",
-    "render_frames": "render",
-    "write_run_page": "report",
-    "InputError": "runner",
+    "Contact": "execute.physics",
+    "SimReport": "execute.physics",
+    "execute": None,  # the room, which is also callable: sim.execute(problem, plan, params)
+    "write_video": "output.media",
+    "RenderParams": "scenario.params",
+    "SimParams": "scenario.params",
+    "draw_scenario": "output.render",
+    "render_frames": "output.render",
+    "write_run_page": "output.report",
+    "InputError": "errors",
     "RunResult": "runner",
     "run_scenario": "runner",
-    "Scenario": "scenario",
-    "ScenarioError": "scenario",
-    "build_problem": "scenario",
-    "read_scenario": "scenario",
+    "Scenario": "scenario.model",
+    "ScenarioError": "scenario.model",
+    "build_problem": "scenario.build",
+    "read_scenario": "scenario.reader",
 }
 
 __all__ = sorted(_WHERE, key=str.lower)

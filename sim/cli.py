@@ -74,9 +74,9 @@ def _load(path: str, seed: int | None):
 
 
 def _cmd_show(args) -> int:
-    from .media import write_png
-    from .outputs import OutputPathError, check_out_file
-    from .render import draw_scenario
+    from .output.media import write_png
+    from .output.files import OutputPathError, check_out_file
+    from .output.render import draw_scenario
 
     if args.output:
         check_out_file(args.output, "--output")
@@ -129,9 +129,9 @@ def _cmd_plan(args) -> int:
 
     from planner import NoPlanFound
 
-    from .legs import plan_legs
-    from .media import atomic_path
-    from .outputs import check_out_file
+    from .execute.legs import plan_legs
+    from .output.media import atomic_path
+    from .output.files import check_out_file
     from .scenario import build_legs, read_scenario
 
     if args.output:
@@ -163,7 +163,7 @@ def _cmd_plan(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .overrides import combinations, parse_set
+    from .scenario.overrides import combinations, parse_set
     from .runner import run_scenario
 
     result = run_scenario(
@@ -175,7 +175,7 @@ def _cmd_run(args) -> int:
         time_limit=args.time_limit,
         overrides=combinations([parse_set(text, many=False) for text in args.set])[0],
     )
-    from .report import verdict
+    from .output.report import verdict
 
     print(f"  {verdict(result.report)[1]}")
     return result.exit_code

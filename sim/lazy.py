@@ -10,11 +10,14 @@ __all__ = ["lazy_exports"]
 
 
 def lazy_exports(package: str, where: Mapping[str, str]) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
-    """A package's ``__getattr__`` and ``__dir__``: ``where`` maps each name to its submodule."""
+    """A package's ``__getattr__`` and ``__dir__``: ``where`` maps each name to its submodule
+    (``None``: the name is a subpackage, imported whole)."""
 
     def __getattr__(name: str):
         if name in where:
-            value = getattr(import_module(f".{where[name]}", package), name)
+            module = where[name]
+            value = import_module(f".{name}", package) if module is None else getattr(
+                import_module(f".{module}", package), name)
             setattr(sys.modules[package], name, value)
             return value
         raise AttributeError(f"module {package!r} has no attribute {name!r}")

@@ -8,8 +8,8 @@ raises :class:`InputError` (exit 2) before anything is written: the output
 folder is checked first, then the scenario, the plan file (fully, against
 the scenario: radius, margin, robots, start, workspace, speed and
 acceleration limits) and, once the plan is known, the physics budget
-(:mod:`sim.budget`).  The run's files are written aside and replace the
-old ones together at the end (:class:`sim.outputs.OutputSet`), so an
+(:mod:`sim.execute.budget`).  The run's files are written aside and replace the
+old ones together at the end (:class:`sim.output.files.OutputSet`), so an
 error or an interrupt leaves the previous run's files as they were.
 """
 
@@ -27,18 +27,18 @@ from planner.bounds import lower_bounds
 from planner.inputfile import echo_path
 from planner.plan import read_plan_file
 
-from .budget import check_physics_budget, check_validator_budget
+from .execute.budget import check_physics_budget, check_validator_budget
 from .errors import InputError
-from .physics import SimReport, execute
-from .legs import plan_legs
-from .media import atomic_path, has_mp4, write_video
-from .outputs import OutputSet, check_out_dir
+from .execute.physics import SimReport, execute
+from .execute.legs import plan_legs
+from .output.media import atomic_path, has_mp4, write_video
+from .output.files import OutputSet, check_out_dir
 from .progress import ProgressBar
-from .playback import MAX_VIDEO_SECONDS
-from .render import render_frames
-from .report import run_page
+from .output.playback import MAX_VIDEO_SECONDS
+from .output.render import render_frames
+from .output.report import run_page
 from .scenario import Scenario, build_legs, read_scenario
-from .series import write_series
+from .execute.series import write_series
 from .words import plural
 
 __all__ = ["InputError", "RunResult", "plan_summary", "run_scenario", "sim_summary"]

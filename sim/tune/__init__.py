@@ -35,8 +35,8 @@ from ..lazy import lazy_exports
 _WHERE = {
     **dict.fromkeys(("EXIT_CLUSTER_LOST", "add_tune_parser"), "cli"),
     "ClusterLostError": "cluster",
-    **dict.fromkeys(("TIMEOUT", "WORKER_DIED", "SweepResult", "sweep", "watchdog_s"), "driver"),
-    **dict.fromkeys(("BUILD_ALLOWANCE_S", "PHYSICS_ALLOWANCE_S"), "limits"),
+    **dict.fromkeys(("SweepResult", "sweep", "watchdog_s"), "driver"),
+    **dict.fromkeys(("BUILD_ALLOWANCE_S", "PHYSICS_ALLOWANCE_S", "TIMEOUT", "WORKER_DIED"), "limits"),
     "write_summary": "report",
     **dict.fromkeys(("ResultsFile", "check_output", "read_results"), "results"),
     **dict.fromkeys(("RobustCell", "margin_needed", "robustness_blocks", "robustness_cells", "wilson_interval"),

@@ -139,7 +139,7 @@ def _one_line_error(parser: argparse.ArgumentParser) -> Callable[[str], None]:
 
 
 def _cmd_tune(args) -> int:
-    from ..overrides import combinations, parse_set
+    from ..scenario.overrides import combinations, parse_set
     from .cluster import ClusterLostError
     from .driver import sweep
     from .spec import PAPER_DIR, TuneError, grid, paper_grid, read_variants

@@ -37,7 +37,7 @@ import uuid
 from collections import deque
 from collections.abc import Callable
 
-from .driver import TIMEOUT, WORKER_DIED
+from .limits import TIMEOUT, WORKER_DIED
 from .spec import RunSpec, TuneError, failure_row, one_line, run_one
 
 __all__ = ["ClusterLostError", "close", "connect", "run_cluster"]

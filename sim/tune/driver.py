@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from .limits import BUILD_ALLOWANCE_S, PHYSICS_ALLOWANCE_S
+from .limits import BUILD_ALLOWANCE_S, PHYSICS_ALLOWANCE_S, TIMEOUT, WORKER_DIED
 from .results import ResultsFile, check_output
 from .spec import RunSpec, TuneError
 
@@ -38,8 +38,6 @@ __all__ = [
 PLANNING_SLACK = 1.1
 """The watchdog allows this multiple of the planning time limit."""
 
-TIMEOUT = "Timeout"
-WORKER_DIED = "WorkerDied"
 
 
 def watchdog_s(spec: RunSpec, allowance: float | None = None) -> float:

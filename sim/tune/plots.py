@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..media import atomic_path
+from ..output.media import atomic_path
 from .robustness import RobustCell, is_number, setting_keys
 from .summary import num_cell, pct, settings_text, value_text
 

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from multiprocessing.connection import wait
 
 from . import spec as _spec
-from .driver import TIMEOUT, WORKER_DIED
+from .limits import TIMEOUT, WORKER_DIED
 from .spec import RunSpec, failure_row
 
 __all__ = ["run_pool"]

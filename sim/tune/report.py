@@ -18,7 +18,7 @@ import shlex
 from collections import defaultdict
 from pathlib import Path
 
-from ..media import atomic_path
+from ..output.media import atomic_path
 from .blocks import Block, Heading, markdown
 from .plots import contact_plot, heatmap
 from .results import SUMMARY_MARK, read_results

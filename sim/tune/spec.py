@@ -21,7 +21,7 @@ import numpy as np
 
 from planner import NoPlanFound, plan
 
-from ..runner import InputError
+from ..errors import InputError
 from ..scenario import Scenario, build_problem, read_scenario
 
 __all__ = [
@@ -168,7 +168,7 @@ def run_one(spec: RunSpec) -> dict:
         else:
             row.update(_stats_fields(stats))
             if spec.simulate:
-                from ..physics import execute
+                from ..execute.physics import execute
 
                 sim = execute(problem, result, sc.sim, rng, planner_params=params)
                 row["sim_ok"] = bool(sim.ok)
@@ -227,7 +227,7 @@ def read_variants(paths: Sequence[str | Path], settings: Sequence[Mapping[str, A
     """Each scenario file read once per settings combination: ``[(scenario, settings), ...]``.
 
     Every combination is checked here, before any run: a bad value is a
-    :class:`sim.overrides.OverrideError` naming its ``--set`` option.
+    :class:`sim.scenario.overrides.OverrideError` naming its ``--set`` option.
     """
     return [(read_scenario(p, overrides=dict(s) or None), dict(s)) for p in paths for s in settings]
 

@@ -61,7 +61,16 @@ MODULES: dict[str, tuple[str, list[str]]] = {
         ],
     ),
     "contacts": (
-        "sim/contacts.py",
+        "sim/execute/contacts.py",
+        [
+            "tests/sim/test_contacts.py",
+            "tests/sim/test_contacts_pins.py",
+            "tests/sim/test_verdict.py",
+            "--deselect=tests/sim/test_verdict.py::test_a_plan_below_the_margin_fails_the_run_though_nothing_touches",
+        ],
+    ),
+    "monitor": (
+        "sim/execute/monitor.py",
         [
             "tests/sim/test_contacts.py",
             "tests/sim/test_contacts_pins.py",
@@ -70,7 +79,7 @@ MODULES: dict[str, tuple[str, list[str]]] = {
         ],
     ),
     "physics": (
-        "sim/physics.py",
+        "sim/execute/physics.py",
         [
             "tests/sim/test_execute.py",
             "tests/sim/test_verdict.py",
@@ -83,8 +92,25 @@ MODULES: dict[str, tuple[str, list[str]]] = {
             "--deselect=tests/sim/test_verdict.py::test_a_plan_below_the_margin_fails_the_run_though_nothing_touches",
         ],
     ),
+    "outcome": (
+        "sim/execute/outcome.py",
+        [
+            "tests/sim/test_execute.py",
+            "tests/sim/test_verdict.py",
+            "tests/sim/test_physics_pins.py",
+            "--deselect=tests/sim/test_execute.py::test_deterministic_across_hash_seeds",
+            "--deselect=tests/sim/test_verdict.py::test_a_plan_below_the_margin_fails_the_run_though_nothing_touches",
+        ],
+    ),
+    "fields": (
+        "sim/scenario/fields.py",
+        [
+            "tests/sim/test_scenario_pins.py",
+            "tests/sim/test_input_contract.py",
+        ],
+    ),
     "scenario": (
-        "sim/scenario.py",
+        "sim/scenario/reader.py",
         [
             "tests/sim/test_scenario_pins.py",
             "tests/sim/test_input_contract.py",
@@ -98,7 +124,7 @@ MODULES: dict[str, tuple[str, list[str]]] = {
         ],
     ),
     "yamlfile": (
-        "sim/yamlfile.py",
+        "sim/scenario/yamlfile.py",
         [
             "tests/sim/test_input_contract.py",
             "tests/sim/test_yamlfile_pins.py",
@@ -113,16 +139,14 @@ SCOPE: dict[str, list[str]] = {
     # realistic loop (_execute_real) nor the replanning world (mutmut's names: x_ + the
     # function's name, or xǁClassǁmethod; a pattern without the __mutmut_ suffix also
     # brings in that function's tests for mutmut's first, clean run)
-    "physics": ["x__check*", "x__execute__mutmut_*", "x_execute*", "x__report*", "x__reached*", "x__filled*",
-                "x__finite*", "xǁSimReportǁ*"],
+    "physics": ["x__check*", "x__execute__mutmut_*", "x_execute*"],
     # the kernels of the exact validator and the contact monitor; not the planner's
     # pruned tests (segments_clear, points_clear, greedy_separated and their indexes)
     "geometry": ["x_point_segment_distance*", "x__orient*", "x__crossing*", "x_segment_segment_distance*",
                  "x_closest_approach*", "x_points_in_polygon*", "x__fold_min*", "xǁEnvironmentǁwall_clearance*",
                  "xǁEnvironmentǁpoint_clearance*", "xǁEnvironmentǁsegment_clearance*", "xǁEnvironmentǁ_inside*"],
-    # the field checks every value goes through, and the file's first reading
-    "scenario": ["xǁ_Readerǁ*", "x__span*", "x__bound*", "x__numeric_text_hint*", "x__kind*",
-                 "x_read_scenario*"],
+    # the file's first reading (the field checks are the "fields" module, whole)
+    "scenario": ["x_read_scenario*"],
 }
 
 

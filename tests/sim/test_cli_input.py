@@ -267,7 +267,7 @@ def _run(args, out_dir: Path, timeout: float = 120.0, prefix=()) -> _Run:
 # exception (traceback on stderr, exit status 1).
 _FORK_DRIVER = r"""
 import json, os, resource, signal, sys, time, traceback
-import sim.cli, sim.media, sim.render, sim.runner  # everything the commands import
+import sim.cli, sim.output.media, sim.output.render, sim.runner  # everything the commands import
 import scipy.optimize, scipy.spatial, shapely  # and import lazily
 
 def child(job):

@@ -1,10 +1,10 @@
-"""The two contact witnesses, pinned event by event (sim/contacts.py).
+"""The two contact witnesses, pinned event by event (sim/execute/contacts.py).
 
 pymunk's witness is driven here with scripted collision events (begin, pre-solve,
 separate) so that each rule of a touching episode is checked on its own: which pair
 it belongs to, when it opens and closes, and its deepest overlap.  The gap monitor is
 fed hand-made samples whose gaps are known exactly.  These are the tests that
-mutation testing of ``sim/contacts.py`` relies on (see ``tests/mutation/``).
+mutation testing of ``sim/execute/contacts.py`` relies on (see ``tests/mutation/``).
 """
 
 from types import SimpleNamespace
@@ -13,18 +13,17 @@ import numpy as np
 import pytest
 
 from planner.problem import Circle, Polygon, Problem
-from sim.contacts import (
+from sim.execute.contacts import (
     ROBOT_OBSTACLE,
     ROBOT_ROBOT,
     ROBOT_WALL,
-    SERIES_CAP,
     Contact,
-    GapMonitor,
     PymunkWitness,
     static_clearances,
 )
-from sim.params import SimParams
-from sim.world import OBSTACLE, ROBOT, WALL, build_world
+from sim.execute.monitor import SERIES_CAP, GapMonitor
+from sim.scenario.params import SimParams
+from sim.execute.world import OBSTACLE, ROBOT, WALL, build_world
 
 
 class _Space:

@@ -6,9 +6,9 @@ import pytest
 
 from planner.plan import Plan
 from planner.problem import Problem
-from sim.control import pd_acceleration, reference_chunk
-from sim.physics import execute
-from sim.params import SimParams
+from sim.execute.control import pd_acceleration, reference_chunk
+from sim.execute.physics import execute
+from sim.scenario.params import SimParams
 
 
 def test_pd_acceleration_closed_form():

@@ -14,8 +14,8 @@ import pytest
 from planner.plan import Plan, min_jerk
 from planner.problem import Circle, Polygon, Problem
 from planner.validate import check_plan, min_clearance
-from sim.physics import Contact, SimReport, execute
-from sim.params import SimParams
+from sim.execute.physics import Contact, SimReport, execute
+from sim.scenario.params import SimParams
 
 R = 0.5
 MARGIN = 0.1
@@ -134,7 +134,7 @@ import hashlib, sys
 import numpy as np
 sys.path.insert(0, {here!r})
 from test_execute import PARAMS, _valid_case
-from sim.physics import execute
+from sim.execute.physics import execute
 problem, plan = _valid_case()
 r = execute(problem, plan, PARAMS)
 print(hashlib.sha256(r.positions.tobytes()).hexdigest(), len(r.contacts), repr(r.min_clearance))

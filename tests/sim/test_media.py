@@ -6,8 +6,8 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sim import media
-from sim.media import gif_durations, has_mp4, write_gif, write_mp4, write_png, write_video
+from sim.output import gif, media
+from sim.output.media import gif_durations, has_mp4, write_gif, write_mp4, write_png, write_video
 
 needs_mp4 = pytest.mark.skipif(not has_mp4(), reason="imageio-ffmpeg is not installed")
 
@@ -93,11 +93,11 @@ def test_shared_palette_has_no_repeated_colour():
     noisy = [rng.integers(0, 256, (32, 32, 3), dtype=np.uint8) for _ in range(3)]
     four = [np.repeat(COLOURS[:4], 4, axis=0).reshape(4, 4, 3)]
     for frames in (_frames(), noisy, four):
-        pal = media._shared_palette(frames)
+        pal = gif._shared_palette(frames)
         n = len(pal)
         assert n == len(np.unique(pal, axis=0)) <= 255
         assert n & (n - 1) != 0  # index n lies inside the colour table (a power of two)
-    assert len(media._shared_palette(four)) == 5
+    assert len(gif._shared_palette(four)) == 5
 
 
 def test_failing_gif_write_leaves_no_file(tmp_path):
@@ -226,8 +226,8 @@ def test_write_png_is_atomic(tmp_path):
 
 def test_rendered_run_to_gif(tmp_path):
     from planner.problem import Problem
-    from sim.params import RenderParams
-    from sim.render import render_frames
+    from sim.scenario.params import RenderParams
+    from sim.output.render import render_frames
 
     p = Problem(6.0, 4.0, (), 0.3, 0.05, [[1, 1], [2, 1]], [[4, 3], [5, 3]])
     t = np.linspace(0.0, 4.0, 241)
@@ -342,8 +342,8 @@ def test_write_video_reports_progress_for_a_sequence(tmp_path):
 
 def test_rendered_frames_stream_into_the_same_gif_as_a_list(tmp_path):
     from planner.problem import Problem
-    from sim.params import RenderParams
-    from sim.render import render_frames
+    from sim.scenario.params import RenderParams
+    from sim.output.render import render_frames
 
     p = Problem(6.0, 4.0, (), 0.3, 0.05, [[1, 1], [2, 1]], [[4, 3], [5, 3]])
     t = np.linspace(0.0, 4.0, 241)

@@ -24,10 +24,11 @@ from pathlib import Path
 
 import pytest
 
-from sim import media, outputs
+from sim.output import media
+from sim.output import files as outputs
 from sim.cli import main
-from sim.media import atomic_path, has_mp4
-from sim.outputs import RUN_OUTPUTS, OutputPathError, OutputSet, check_out_dir, check_out_file, remove_stale
+from sim.output.media import atomic_path, has_mp4
+from sim.output.files import RUN_OUTPUTS, OutputPathError, OutputSet, check_out_dir, check_out_file, remove_stale
 from sim.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -342,7 +343,7 @@ def test_internal_errors_are_exit_3_with_one_line(tmp_path, monkeypatch, capsys)
 def test_signals_held_defer_an_interrupt_to_the_end_of_the_block():
     import threading
 
-    from sim.outputs import signals_held
+    from sim.output.files import signals_held
 
     steps = []
     with pytest.raises(KeyboardInterrupt):

@@ -1,9 +1,9 @@
-"""The physics run's verdict, report and input checks, pinned (sim/physics.py).
+"""The physics run's verdict, report and input checks, pinned (sim/execute/physics.py).
 
 The verdict line, the JSON summary, the refusal of each bad parameter at its exact
 boundary, target matching at the tolerance, and the ideal loop's bookkeeping (sample
 times, progress, simulated time) are checked against values written out by hand.
-These are the tests that mutation testing of ``sim/physics.py`` relies on (see
+These are the tests that mutation testing of ``sim/execute/physics.py`` relies on (see
 ``tests/mutation/``).
 """
 
@@ -15,10 +15,11 @@ import pytest
 
 from planner.plan import Plan
 from planner.problem import Problem
-from sim.contacts import Contact
-from sim.params import Failure, Impulse, Noise, SimParams
-from sim.physics import SimReport, _check, _filled, _reached, _report as build_report, execute
-from sim.realism import Disturbance, phase_margin
+from sim.execute.contacts import Contact
+from sim.scenario.params import Failure, Impulse, Noise, SimParams
+from sim.execute.outcome import SimReport, assemble as build_report, filled as _filled, reached as _reached
+from sim.execute.physics import _check, execute
+from sim.execute.realism import Disturbance, phase_margin
 
 
 def _report(**kw):

@@ -13,9 +13,10 @@ import pytest
 
 from planner.plan import Plan
 from planner.problem import Problem
-from sim.physics import _execute, _execute_real, execute
-from sim.params import Failure, Impulse, Noise, Pushes, SimParams
-from sim.realism import (
+from sim.execute.physics import _execute, execute
+from sim.execute.real import execute_real as _execute_real
+from sim.scenario.params import Failure, Impulse, Noise, Pushes, SimParams
+from sim.execute.realism import (
     G,
     ControlClock,
     DelayLine,
@@ -301,7 +302,7 @@ def test_tracking_error_is_measured_while_settling_too():
 
 
 def test_phase_margin_flags_gains_too_high_for_the_latency():
-    from sim.realism import phase_margin
+    from sim.execute.realism import phase_margin
 
     # kp = 400, kd = 40 cross over at 41 rad/s: 40 ms of latency and 10 ms of
     # hold cost 118 degrees, more than the 76 the derivative gives.

@@ -11,9 +11,9 @@ import pytest
 
 from planner import Circle, PlannerParams, Problem, plan
 from planner.plan import Plan
-from sim.physics import execute
-from sim.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
-from sim.recovery import RecoveryFailed, StopReference, drop_targets, parking, separation_step
+from sim.execute.physics import execute
+from sim.scenario.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
+from sim.execute.recovery import RecoveryFailed, StopReference, drop_targets, parking, separation_step
 
 R = 0.5
 MARGIN = 0.1

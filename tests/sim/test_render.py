@@ -8,11 +8,11 @@ import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
 from planner.problem import Circle, Polygon, Problem
-from sim.canvas import BACKGROUND, MAX_SIZE, MIN_SIZE, TEXT, fit_text, frame_size, label_font
-from sim.params import RenderParams
-from sim.playback import MAX_VIDEO_SECONDS
-from sim.render import _interpolate  # noqa: I001
-from sim.render import (
+from sim.output.canvas import BACKGROUND, MAX_SIZE, MIN_SIZE, TEXT, fit_text, frame_size, label_font
+from sim.scenario.params import RenderParams
+from sim.output.playback import MAX_VIDEO_SECONDS
+from sim.output.render import _interpolate  # noqa: I001
+from sim.output.render import (
     CONTACT,
     START_MARK,
     TARGET_MARK,
@@ -183,7 +183,7 @@ def test_discs_are_antialiased():
     img = draw_scenario(Problem(p.width, p.height, (), p.radius, p.margin, [[2.0, 2.0]], [[7.0, 6.0]]), size=400)
     tx, ty = cv.to_px(np.array([7.0, 6.0]))[0]
     patch = img[int(ty) - r : int(ty) + r, int(tx) - r : int(tx) + r]
-    from sim.canvas import TARGET
+    from sim.output.canvas import TARGET
 
     assert _blends(patch, TARGET) >= 8
     # negative control: an aliased disc has no such pixels
@@ -345,7 +345,7 @@ def test_after_a_replan_the_header_follows_the_new_plan():
 
 
 def test_a_failed_robot_is_drawn_grey_with_a_cross_from_its_failure_on():
-    from sim.canvas import FAILED
+    from sim.output.canvas import FAILED
 
     p = _problem()
     t, pos = _recording(p, seconds=10.0)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from sim.params import MAX_RENDER_SIZE
+from sim.scenario.params import MAX_RENDER_SIZE
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "paper" / "fig1-line-to-phi.yaml"

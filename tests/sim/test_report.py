@@ -11,9 +11,10 @@ import pytest
 
 from planner import Plan
 from planner.problem import Problem
-from sim import report as page
-from sim.report import run_page, verdict, write_run_page
-from sim.series import run_series
+from sim.output import plots
+from sim.output import report as page
+from sim.output.report import run_page, verdict, write_run_page
+from sim.execute.series import run_series
 
 ROOT = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).parent / "swarmform")
@@ -103,7 +104,7 @@ def _picture():
 
 
 def _gif(path: Path) -> Path:
-    from sim.media import write_gif
+    from sim.output.media import write_gif
 
     frames = [np.full((40, 60, 3), 248, np.uint8) for _ in range(3)]
     for k, f in enumerate(frames):
@@ -256,7 +257,7 @@ def test_a_huge_name_is_cut_in_the_title(tmp_path):
 
 def test_a_large_video_is_linked_not_embedded(tmp_path, monkeypatch):
     gif = _gif(tmp_path / "big.gif")
-    monkeypatch.setattr(page, "EMBED_MAX_BYTES", gif.stat().st_size - 1)
+    monkeypatch.setattr(plots, "EMBED_MAX_BYTES", gif.stat().st_size - 1)
     doc = _Page(write_run_page(tmp_path / "big.html", _report(), None, None, gif).read_text(encoding="utf-8"))
     assert "big.gif" in doc.urls and not any(u.startswith("data:image/gif") for u in doc.urls)
     assert "too large to embed" in doc.all_text

@@ -1,16 +1,17 @@
-"""The scenario reader's checks, pinned at their boundaries (sim/scenario.py).
+"""The scenario reader's checks, pinned at their boundaries (sim/scenario/reader.py).
 
 Each field check is driven at its exact edge (the largest value allowed and the first
 refused) and the one-line message is compared whole: the field, the allowed range as
 written, and the value received.  These are the tests that mutation testing of
-``sim/scenario.py`` relies on (see ``tests/mutation/``).
+``sim/scenario/reader.py`` relies on (see ``tests/mutation/``).
 """
 
 import math
 
 import pytest
 
-from sim.scenario import ScenarioError, _numeric_text_hint, _Reader, _span
+from sim.scenario import ScenarioError
+from sim.scenario.fields import _numeric_text_hint, _Reader, _span
 
 class _R:
     """A fresh reader per use (a reader made at import would escape mutation testing)."""

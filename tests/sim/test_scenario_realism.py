@@ -7,7 +7,7 @@ import textwrap
 import pytest
 
 from sim.cli import main
-from sim.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
+from sim.scenario.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
 from sim.scenario import ScenarioError, read_scenario
 
 HEAD = """

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sim.runner import run_scenario
-from sim.series import SERIES_KEYS
+from sim.execute.series import SERIES_KEYS
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -45,4 +45,4 @@ def test_help_and_version_import_nothing_heavy(argv):
 
 
 def test_the_probe_sees_a_heavy_import():
-    assert "planner" in _heavy_after(["--help"], extra="import sim.scenario")
+    assert "planner" in _heavy_after(["--help"], extra="import sim.scenario.reader")

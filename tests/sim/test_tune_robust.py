@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-import sim.overrides
+import sim.scenario.overrides
 from sim.cli import main
-from sim.overrides import OverrideError, apply_overrides, combinations, parse_set
+from sim.scenario.overrides import OverrideError, apply_overrides, combinations, parse_set
 from sim.scenario import ScenarioError, read_scenario
 from sim.tune.results import SUMMARY_MARK
 from sim.tune import (margin_needed, read_results, read_variants, robustness_blocks, robustness_cells, grid, sweep,
@@ -38,7 +38,7 @@ def _cli(argv, capsys) -> tuple[int, str, str]:
 
 
 def test_the_module_examples_run():
-    assert doctest.testmod(sim.overrides).failed == 0
+    assert doctest.testmod(sim.scenario.overrides).failed == 0
 
 
 @pytest.mark.parametrize(("text", "values"), [

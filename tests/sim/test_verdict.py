@@ -28,8 +28,8 @@ import pytest
 
 from planner.plan import Plan, min_jerk
 from planner.problem import Problem
-from sim.physics import execute
-from sim.params import SimParams
+from sim.execute.physics import execute
+from sim.scenario.params import SimParams
 from sim.runner import run_scenario
 from sim.scenario import ScenarioError, build_problem, read_scenario
 

@@ -1,4 +1,4 @@
-"""Exact refusals and boundaries of the strict YAML loader (sim/yamlfile.py).
+"""Exact refusals and boundaries of the strict YAML loader (sim/scenario/yamlfile.py).
 
 Each test pins what a user reads: where (line and column) and why a document is
 refused, and the limits (nesting depth, integer length) at their exact edge.
@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from planner.inputfile import HugeInt
-from sim.yamlfile import MAX_DEPTH, YamlRefused, _code, _short, _where, load_yaml
+from sim.scenario.yamlfile import MAX_DEPTH, YamlRefused, _code, _short, _where, load_yaml
 
 
 def refused(text):

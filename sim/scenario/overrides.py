@@ -31,7 +31,7 @@ from typing import Any
 
 from .yamlfile import YamlRefused, load_yaml
 
-from .scenario import ScenarioError
+from .model import ScenarioError
 
 __all__ = ["Override", "OverrideError", "apply_overrides", "blame", "combinations", "parse_set"]
 

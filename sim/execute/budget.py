@@ -19,7 +19,7 @@ import numpy as np
 
 from planner.inputfile import echo_path
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = [
     "MAX_BODY_STEPS",

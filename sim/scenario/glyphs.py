@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._pygame import pygame
+from .._pygame import pygame
 
 __all__ = [
     "GlyphError",

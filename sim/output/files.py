@@ -35,8 +35,8 @@ from pathlib import Path
 
 from planner.inputfile import echo_path
 
-from .errors import InputError
-from .stops import STOP_SIGNALS
+from ..errors import InputError
+from ..stops import STOP_SIGNALS
 
 __all__ = [
     "RUN_OUTPUTS",

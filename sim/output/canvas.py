@@ -22,7 +22,7 @@ import numpy as np
 
 from planner.problem import Circle, Problem
 
-from ._pygame import pygame
+from .._pygame import pygame
 __all__ = [
     "BACKGROUND",
     "CONTACT",

@@ -8,7 +8,7 @@ enlarged when two robots would come closer than ``2 r + margin``), then
 ``scatter`` draws its placements directly over the free space
 (:func:`planner.scatter.scatter`).
 
-Text is rendered off-screen (:mod:`sim.glyphs`) and reaches the planner's
+Text is rendered off-screen (:mod:`sim.scenario.glyphs`) and reaches the planner's
 samplers as plain data: the stroke skeleton of the glyphs
 (:func:`planner.skeleton.mask_strokes`, sampled like the letters) for
 ``fill: strokes``, or the glyph mask (:func:`planner.area.area_points`)
@@ -50,7 +50,7 @@ MAX_DEFAULT_COUNT = 500
 
 @lru_cache(maxsize=32)
 def text_glyphs(text: str, font: str | None):
-    """The rendered text, a :class:`sim.glyphs.Glyphs` (cached: reading and building a
+    """The rendered text, a :class:`sim.scenario.glyphs.Glyphs` (cached: reading and building a
     scenario render it once; pygame is imported only for text)."""
     from .glyphs import render_text
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .params import MAX_FPS
+from ..scenario.params import MAX_FPS
 
 __all__ = ["MAX_FPS", "MAX_VIDEO_SECONDS", "Timing", "frame_times", "playback_speedup", "timing"]
 
@@ -97,7 +97,7 @@ def _candidates(x: float) -> list[float]:
 
 
 def playback_speedup(duration: float, params) -> float:
-    """Sim seconds per video second (``params`` is a :class:`sim.params.RenderParams`).
+    """Sim seconds per video second (``params`` is a :class:`sim.scenario.params.RenderParams`).
 
     ``params.speedup`` when set; otherwise the readable value (1, 1.5, 2,
     2.5, 3, 4, 5, 6, 8, 10, 15, ...) that makes a run of ``duration`` sim

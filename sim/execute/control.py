@@ -5,10 +5,10 @@ The commanded acceleration of robot ``i`` over one control step is::
     a = kp * (x_ref - x) + kd * (v_ref - v) + a_ff
 
 limited in magnitude to ``force_limit / mass`` (the force limit is in
-newtons, :class:`sim.params.SimParams`); the force is ``mass * a``, with the
+newtons, :class:`sim.scenario.params.SimParams`); the force is ``mass * a``, with the
 model's mass.  For ideal robots it is computed once per control step ``dt``
 and held for ``substeps`` physics steps of ``dt / substeps``; realistic
-robots (:mod:`sim.realism`) update at their control rate, from noisy,
+robots (:mod:`sim.execute.realism`) update at their control rate, from noisy,
 delayed measurements.
 
 Timing.  Chipmunk moves a body with the velocity it had at the start of a

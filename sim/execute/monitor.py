@@ -1,54 +1,17 @@
-"""Two independent contact witnesses for a physics run.
-
-* :class:`PymunkWitness` listens to pymunk's collision callbacks
-  (``Space.on_collision``) for robot-robot, robot-obstacle and robot-wall
-  pairs.  A *touching episode* of a pair (two robots, or a robot and one
-  obstacle or the wall, however many convex pieces it touches) opens with
-  the first ``begin`` and closes when its last arbiter separates; each
-  episode is one :class:`Contact`, timed at the end of the physics step in
-  which it began, with the deepest penetration seen during the episode
-  (``-ContactPoint.distance``).
-* :class:`GapMonitor` measures, at every recorded sample, the exact gap
-  between every pair of disc boundaries and between every disc and every
-  obstacle and the walls (signed: negative means overlap).  Work is
-  skipped only where a bound proves it cannot matter: robot pairs too far
-  apart to touch or to set a new minimum (a Verlet list per few samples),
-  polygons whose bounding box is farther than the nearest wall or circle.  It keeps the
-  smallest gap and where it occurred, and opens one :class:`Contact` per
-  pair and touching episode (the first sample with a gap ``< 0``; the depth
-  is the largest overlap during the episode).  It also keeps the smallest
-  gap of every sample (:attr:`GapMonitor.series`), exact up to a cap of one
-  robot diameter (:data:`SERIES_CAP` radii): larger gaps are recorded as
-  the cap.
-
-A run is clean only when neither witness saw anything.
-"""
+"""The geometric contact witness: the exact smallest gap of every sample, robot pairs through Verlet lists."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from planner.geometry import point_segment_distance, points_in_polygon
+from .contacts import ROBOT_OBSTACLE, ROBOT_ROBOT, ROBOT_WALL, Contact, _contacts, static_clearances
 
-from .world import OBSTACLE, ROBOT, WALL
+__all__ = ["SERIES_CAP", "GapMonitor"]
 
-__all__ = [
-    "ROBOT_OBSTACLE",
-    "ROBOT_ROBOT",
-    "ROBOT_WALL",
-    "Contact",
-    "GapMonitor",
-    "PymunkWitness",
-    "SERIES_CAP",
-    "static_clearances",
-]
 
-ROBOT_ROBOT = "robot-robot"
-ROBOT_OBSTACLE = "robot-obstacle"
-ROBOT_WALL = "robot-wall"
+
 
 # Samples that share one Verlet list of candidate robot pairs, and the
 # candidates per robot above which the monitor switches to per-sample
@@ -60,166 +23,6 @@ SERIES_CAP = 2.0
 """Per-sample smallest gaps above ``SERIES_CAP * radius`` (one robot diameter) are
 recorded as that cap: nothing that far apart is near a contact, and the cap
 bounds the pairs the monitor measures."""
-
-
-@dataclass(frozen=True)
-class Contact:
-    """One touching episode seen by one witness.
-
-    time: when it began [s].
-    kind: ``robot-robot``, ``robot-obstacle`` or ``robot-wall``.
-    a: robot index (the smaller one for ``robot-robot``).
-    b: the other robot (``robot-robot``), the obstacle index
-        (``robot-obstacle``) or ``-1`` (``robot-wall``).
-    depth: the deepest overlap during the episode, ``>= 0`` [workspace units].
-    witness: ``pymunk`` or ``monitor``.
-    """
-
-    time: float
-    kind: str
-    a: int
-    b: int
-    depth: float
-    witness: str
-
-    def to_dict(self) -> dict:
-        return {
-            "time": self.time,
-            "kind": self.kind,
-            "a": self.a,
-            "b": self.b,
-            "depth": self.depth,
-            "witness": self.witness,
-        }
-
-    def describe(self) -> str:
-        if self.kind == ROBOT_ROBOT:
-            who = f"robots {self.a} and {self.b}"
-        elif self.kind == ROBOT_WALL:
-            who = f"robot {self.a} and the wall"
-        else:
-            who = f"robot {self.a} and obstacle {self.b}"
-        return f"{who} touch at t = {self.time:.3f} s, depth {self.depth:.3g} ({self.witness})"
-
-
-def _contacts(records: list[list], witness: str) -> list[Contact]:
-    return [Contact(float(t), k, int(a), int(b), float(d), witness) for t, k, a, b, d in records]
-
-
-# -- pymunk's witness -------------------------------------------------------------
-
-
-class PymunkWitness:
-    """Records pymunk's ``begin`` events as touching episodes.
-
-    ``now`` must hold the time at the end of the physics step about to run
-    (the executor sets it before every ``space.step``); a ``begin`` during
-    that step is stamped with it.
-    """
-
-    def __init__(self, world):
-        self.now = 0.0
-        self._robot_of = world.robot_of
-        self._obstacle_of = world.obstacle_of
-        self._records: list[list] = []  # [time, kind, a, b, depth]
-        self._open: dict[tuple, list] = {}  # key -> [arbiter count, record]
-        space = world.space
-        for other in (ROBOT, OBSTACLE, WALL):
-            space.on_collision(
-                ROBOT,
-                other,
-                begin=self._begin,
-                pre_solve=self._pre_solve,
-                separate=self._separate,
-            )
-
-    def _key(self, arbiter) -> tuple[str, int, int]:
-        sa, sb = arbiter.shapes
-        ra = self._robot_of.get(sa)
-        rb = self._robot_of.get(sb)
-        if ra is not None and rb is not None:
-            return (ROBOT_ROBOT, min(ra, rb), max(ra, rb))
-        if ra is None:
-            ra, sb = rb, sa
-        ob = self._obstacle_of[sb]
-        return (ROBOT_WALL, ra, -1) if ob < 0 else (ROBOT_OBSTACLE, ra, ob)
-
-    @staticmethod
-    def _depth(arbiter) -> float:
-        pts = arbiter.contact_point_set.points
-        return max([0.0] + [-p.distance for p in pts])
-
-    def _begin(self, arbiter, space, data) -> None:
-        key = self._key(arbiter)
-        entry = self._open.get(key)
-        depth = self._depth(arbiter)
-        if entry is None:
-            record = [self.now, key[0], key[1], key[2], depth]
-            self._records.append(record)
-            self._open[key] = [1, record]
-        else:
-            entry[0] += 1
-            entry[1][4] = max(entry[1][4], depth)
-
-    def _pre_solve(self, arbiter, space, data) -> None:
-        entry = self._open.get(self._key(arbiter))
-        if entry is not None:
-            entry[1][4] = max(entry[1][4], self._depth(arbiter))
-
-    def _separate(self, arbiter, space, data) -> None:
-        key = self._key(arbiter)
-        entry = self._open.get(key)
-        if entry is not None:
-            entry[0] -= 1
-            if entry[0] <= 0:
-                del self._open[key]
-
-    def contacts(self) -> list[Contact]:
-        return _contacts(self._records, "pymunk")
-
-
-# -- the geometric monitor -------------------------------------------------------------
-
-
-def static_clearances(env, points: np.ndarray, n_obstacles: int, below: float | None = None) -> np.ndarray:
-    """Signed clearance of centres to every obstacle and to the walls.
-
-    Returns ``(N, n_obstacles + 1)``: column ``k`` is obstacle ``k``, the
-    last column the walls.  Distances are from the centre to the obstacle
-    set (a polygon's edges, a circle's rim, the nearest wall line),
-    negative when the centre is inside it; subtract the radius for the gap
-    of a disc.  Where a centre is outside every obstacle, the row minimum
-    equals :meth:`planner.geometry.Environment.point_clearance`.
-
-    With ``below`` given (a number, or one per point), a polygon entry is
-    exact only where it is less than ``below``; elsewhere it may be any
-    lower bound that is at least ``below`` (the distance to the polygon's
-    bounding box), which is all a search for the minimum or for overlaps
-    needs.
-    """
-    pts = np.asarray(points, float).reshape(-1, 2)
-    out = np.empty((len(pts), n_obstacles + 1))
-    out[:, -1] = env.wall_clearance(pts)
-    if len(env.circle_radii):
-        d = np.sqrt(((pts[:, None, :] - env.circle_centers[None]) ** 2).sum(-1))
-        out[:, list(env.circle_ids)] = d - env.circle_radii[None]
-    for i, poly in enumerate(env.polygons):
-        col = env.polygon_ids[i]
-        if below is None:
-            sel = slice(None)
-        else:
-            lo, hi = poly.min(axis=0), poly.max(axis=0)
-            gap = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
-            bound = np.sqrt(np.einsum("nk,nk->n", gap, gap))
-            sel = np.flatnonzero(bound < below)
-            out[:, col] = bound
-            if len(sel) == 0:
-                continue
-        p = pts[sel]
-        d = point_segment_distance(p[:, None, :], poly[None], np.roll(poly, -1, axis=0)[None]).min(axis=1)
-        out[sel, col] = np.where(points_in_polygon(p, poly), -d, d)
-    return out
-
 
 class GapMonitor:
     """Exact gaps at the recorded samples, the smallest one, and touching episodes.

@@ -33,7 +33,7 @@ exceeds ``recovery.trigger``, or a robot fails, it runs this sequence:
 
 The planner is called with the scenario's planner settings, but with ``g``
 and ``q`` on auto (anytime) and ``recovery.time_limit``; its generator is the
-run's replan stream (:func:`sim.realism.streams`).
+run's replan stream (:func:`sim.execute.realism.streams`).
 """
 
 from __future__ import annotations

@@ -71,7 +71,7 @@ class Failure:
 
 @dataclass(frozen=True)
 class Recovery:
-    """Online recovery (:mod:`sim.recovery`).
+    """Online recovery (:mod:`sim.execute.recovery`).
 
     replan: when any robot's tracking error exceeds ``trigger`` [units], or a
         robot fails, every robot brakes to rest and the planner plans again
@@ -103,7 +103,7 @@ class SimParams:
     settle_time: time simulated after the plan ends [s].
     tolerance: distance from a target that counts as reached [units].
 
-    Realistic execution (every one off by default; see :mod:`sim.realism`):
+    Realistic execution (every one off by default; see :mod:`sim.execute.realism`):
 
     control_rate: controller updates per second [Hz], with a zero-order hold
         between them; ``None`` updates once per control step ``dt``.
@@ -163,7 +163,7 @@ class RenderParams:
     fps: frames per second of the video.
     size: frame side in pixels (the longer workspace side maps to it), or
         ``None`` (auto): 480 to 960, growing with the workspace (measured in
-        robot radii) and the number of robots (:func:`sim.canvas.frame_size`).
+        robot radii) and the number of robots (:func:`sim.output.canvas.frame_size`).
     trails: draw each robot's recent path.
     formats: any of ``gif`` and ``mp4``; mp4 is written when imageio-ffmpeg
         is installed (the ``video`` extra) and skipped otherwise.

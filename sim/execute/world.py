@@ -82,7 +82,7 @@ class World:
 def build_world(problem, params) -> World:
     """Build the pymunk world of ``problem`` with the robots at ``problem.start``.
 
-    ``params`` supplies the body mass (:class:`sim.params.SimParams`).  The
+    ``params`` supplies the body mass (:class:`sim.scenario.params.SimParams`).  The
     caller may move the bodies before the first step (see
     :func:`sim.execute`, which places them at the plan's start).
     """

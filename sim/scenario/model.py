@@ -1,0 +1,142 @@
+"""What a checked scenario is: its frozen specs, its error, and the bounds its fields share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from planner.inputfile import echo_path
+from planner.params import PlannerParams
+from planner.problem import Circle, Polygon
+
+from .params import RenderParams, SimParams
+
+__all__ = ["FormationSpec", "MAX_FILE_BYTES", "PaperRef", "RandomObstacles", "Scenario", "ScenarioError"]
+
+
+MAX_FILE_BYTES = 256 << 10
+"""The largest scenario file read [bytes]: 256 KiB, room for 1000 explicit start and target
+points and 4096 polygon vertices (the biggest shipped scenario is under 1 KiB)."""
+
+# Bounds shared by several fields (see the README's input table).
+_MAX_SIDE = 1000.0  # workspace side [units]
+_MAX_ROBOTS = 1000
+# Obstacles of a scenario (random ones included), and their vertices (a random
+# obstacle counts as 8, the most it has).  The planner's clearance and
+# visibility kernels are indexed (memory about linear in edges); at these caps
+# (64 random obstacles, 169 triangles, a 512-gon, 256 circles, with 30 to 50
+# robots) a run plans in under 3 s and peaks under 200 MB.
+_MAX_OBSTACLES = 256
+_MAX_VERTICES = 512
+_RANDOM_VERTICES = 8
+_MAX_SEED = 2**63 - 1
+_MAX_NAME = 64  # characters
+
+
+class ScenarioError(ValueError):
+    """A bad scenario file: ``str()`` is one line ``FILE: FIELD: reason``."""
+
+    def __init__(self, path: str | Path, field: str, reason: str):
+        self.path = str(path)
+        self.field = field
+        self.reason = reason
+        super().__init__(f"{echo_path(self.path)}: {field}: {reason}")
+
+
+@dataclass(frozen=True)
+class RandomObstacles:
+    """``count`` random convex polygons with diameters in ``size``."""
+
+    count: int
+    size: tuple[float, float]
+    seed: int | None = None
+
+
+@dataclass(frozen=True)
+class FormationSpec:
+    """One placement of the swarm: a formation (with scale, rotation, centre) or explicit points.
+
+    formation: a name of :data:`planner.FORMATIONS`, ``scatter``, ``text``
+        (then ``text``, ``font``, ``fill``) or ``strokes`` (then ``strokes``).
+    scale: the longer side of the robots' bounding box as a fraction of
+        ``min(W, H)`` (enlarged when robots would come closer than
+        ``2 r + margin``); ``None`` means ``fit``: as large as fits 90 % of
+        the workspace (less the wall clearance) unrotated.
+    rotation: degrees counter-clockwise; ``None`` means random.
+    center: the bounding box's centre [units]; ``None`` means random.
+    region: ``(x0, y0, x1, y1)`` that scatter spreads the centres over.
+    hold: seconds the swarm rests in this formation before the next leg
+        starts (chained ``targets`` only).
+    """
+
+    formation: str | None = None
+    scale: float | None = 0.3
+    rotation: float | None = None
+    center: tuple[float, float] | None = None
+    points: tuple[tuple[float, float], ...] | None = None
+    text: str | None = None
+    font: str | None = None
+    fill: str = "strokes"
+    strokes: tuple[tuple[tuple[float, float], ...], ...] | None = None
+    region: tuple[float, float, float, float] | None = None
+    hold: float = 0.0
+
+    def describe(self) -> str:
+        if self.points is not None:
+            return "points"
+        if self.text is not None:
+            shown = self.text if len(self.text) <= 24 else self.text[:21] + "..."
+            return f"text {shown!r}" + (" (area)" if self.fill == "area" else "")
+        if self.strokes is not None:
+            return f"strokes ({len(self.strokes)})"
+        return str(self.formation)
+
+
+@dataclass(frozen=True)
+class PaperRef:
+    """Where a scenario comes from in the paper: table, row and reported time [s]."""
+
+    table: str
+    row: int
+    time_s: float
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A checked scenario file.  Lengths in workspace units, speeds in units/s.
+
+    ``target`` is the last target; ``targets`` holds every target of a
+    chained scenario (empty when the file gives one ``target``).
+    """
+
+    path: str
+    name: str
+    seed: int
+    width: float
+    height: float
+    radius: float
+    margin: float
+    count: int
+    max_speed: float
+    max_accel: float
+    obstacles: tuple[Polygon | Circle | RandomObstacles, ...]
+    start: FormationSpec
+    target: FormationSpec
+    planner: PlannerParams
+    sim: SimParams
+    render: RenderParams
+    paper: PaperRef | None = None
+    targets: tuple[FormationSpec, ...] = ()
+
+    @property
+    def legs(self) -> tuple[FormationSpec, ...]:
+        """The targets in the order they are reached (``target`` alone unless chained)."""
+        return self.targets or (self.target,)
+
+    def describe(self) -> str:
+        """``start -> target`` (every target of a chain)."""
+        return " -> ".join(spec.describe() for spec in (self.start, *self.legs))
+
+
+# ----------------------------------------------------------------------------
+# field readers
