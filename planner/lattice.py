@@ -45,80 +45,16 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .geometry import closest_approach
+from .grid import _SLACK, Lattice, build_lattice, lattice_spacing
 from .problem import Problem
+from .tswap import tswap
 
 __all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", "lattice_waypoints", "snap", "tswap"]
-
-_SLACK = 1.0 + 1e-6  # spacing over sqrt(2) * separation
-_MAX_VERTICES = 60_000
-_FIELD_ENTRIES = 10_000_000  # robots x vertices in the distance fields
-
-
-@dataclass(frozen=True, eq=False)
-class Lattice:
-    """Clear lattice points ``points (V, 2)``, their 4-neighbours ``nbr (V, 4)``
-    (-1 where there is none or the edge is blocked), the spacing and the
-    connected component of every vertex."""
-
-    points: np.ndarray
-    nbr: np.ndarray
-    spacing: float
-    component: np.ndarray
-
-    @property
-    def n(self) -> int:
-        return len(self.points)
-
-
-def lattice_spacing(problem: Problem) -> float:
-    """``sqrt(2) * separation`` (plus a hair), larger when the lattice would be too big."""
-    a = math.sqrt(2.0) * problem.separation * _SLACK
-    cap = min(_MAX_VERTICES, _FIELD_ENTRIES // max(problem.m, 1))
-    return max(a, math.sqrt(problem.width * problem.height / cap))
-
-
-def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] = (0.0, 0.0)) -> Lattice:
-    """The lattice of clear points and clear 4-neighbour edges (both exact); ``shift``
-    moves it by that fraction of the spacing."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    c = problem.clearance
-    nx = int(math.floor((problem.width - 2 * c) / spacing - shift[0])) + 1
-    ny = int(math.floor((problem.height - 2 * c) / spacing - shift[1])) + 1
-    # centred between the walls' margins, then shifted
-    ox = c + 0.5 * (problem.width - 2 * c - (nx - 1 + shift[0]) * spacing) + shift[0] * spacing
-    oy = c + 0.5 * (problem.height - 2 * c - (ny - 1 + shift[1]) * spacing) + shift[1] * spacing
-    gx, gy = np.meshgrid(ox + spacing * np.arange(nx), oy + spacing * np.arange(ny), indexing="ij")
-    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    ok = problem.env.points_clear(pts, c)
-    vid = np.full(nx * ny, -1)
-    vid[ok] = np.arange(int(ok.sum()))
-    vid = vid.reshape(nx, ny)
-    pts = pts[ok]
-    nbr = np.full((len(pts), 4), -1)
-    rows, cols = [], []
-    for k, (dx, dy) in enumerate(((1, 0), (0, 1))):
-        a = vid[: nx - dx, : ny - dy].ravel()
-        b = vid[dx:, dy:].ravel()
-        both = (a >= 0) & (b >= 0)
-        a, b = a[both], b[both]
-        clear = problem.env.segments_clear(pts[a], pts[b], c)
-        a, b = a[clear], b[clear]
-        nbr[a, k] = b  # right / up
-        nbr[b, k + 2] = a  # left / down
-        rows.append(a)
-        cols.append(b)
-    r, cc = np.concatenate(rows), np.concatenate(cols)
-    g = coo_matrix((np.ones(len(r)), (r, cc)), shape=(len(pts), len(pts)))
-    _, comp = connected_components(g, directed=False)
-    return Lattice(pts, nbr, float(spacing), comp)
 
 
 # ----------------------------------------------------------------------------
@@ -287,134 +223,7 @@ def snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float,
 
 
 # ----------------------------------------------------------------------------
-# routing (TSWAP)
-
-
-def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | None:
-    """``(len(sources), V)`` lattice distances (steps) from each source; -1 unreachable."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import shortest_path
-
-    v = np.repeat(np.arange(lat.n), 4)
-    w = lat.nbr.ravel()
-    ok = w >= 0
-    g = coo_matrix((np.ones(int(ok.sum())), (v[ok], w[ok])), shape=(lat.n, lat.n)).tocsr()
-    dtype = np.int16 if lat.n < 30_000 else np.int32
-    out = np.empty((len(sources), lat.n), dtype)
-    chunk = max(1, min(128, 4_000_000 // max(lat.n, 1)))  # small chunks: the deadline is checked between
-    for s in range(0, len(sources), chunk):
-        if time.perf_counter() > deadline:
-            return None
-        d = shortest_path(g, method="D", directed=False, unweighted=True, indices=sources[s : s + chunk])
-        d[~np.isfinite(d)] = -1
-        out[s : s + chunk] = d
-    return out
-
-
-def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float,
-          max_steps: int | None = None) -> list[np.ndarray] | None:
-    """Time steps (vertex of every robot after each) from ``start_v`` to the set ``goal_v``.
-
-    TSWAP (see the module docstring), synchronous: per time step, first
-    target swaps (a robot whose next vertex holds a robot resting on its
-    own target takes that target, and gives its own) and rotations of
-    targets along waiting cycles, then every robot not on its target moves
-    to its next vertex when that is free at that moment.  ``None`` when
-    the deadline or the step cap comes first, or a target is unreachable.
-    """
-    from scipy.optimize import linear_sum_assignment
-
-    m = len(start_v)
-    goals = np.asarray(goal_v, int)
-    field = _fields(lat, goals, deadline)
-    if field is None:
-        return None
-    cost = field[:, start_v].T.astype(float)  # (robot, goal)
-    if (cost < 0).any():
-        # robots and targets in different lattice components: only matching counts can work
-        if np.any(np.bincount(lat.component[start_v], minlength=lat.n)
-                  != np.bincount(lat.component[goals], minlength=lat.n)):
-            return None
-        cost[cost < 0] = 1e9
-    _, goal_of = linear_sum_assignment(cost**2)
-    goal_of = goal_of.tolist()  # robot -> goal index
-    pts = lat.points
-    nbr = lat.nbr.tolist()
-    gpts = pts[goals]
-    where = [int(v) for v in start_v]
-    occ = np.full(lat.n, -1)
-    occ[start_v] = np.arange(m)
-    occ = occ.tolist()
-    goal_vert = goals.tolist()
-    frows = [field[g] for g in range(m)]
-
-    def nexts(i: int) -> list[int]:
-        """Neighbours one step closer to robot i's target, the most direct first."""
-        g = goal_of[i]
-        row = frows[g]
-        v = where[i]
-        dv = row[v]
-        cand = [u for u in nbr[v] if u >= 0 and row[u] == dv - 1]
-        if len(cand) > 1:
-            gx, gy = gpts[g]
-            cand.sort(key=lambda u: (pts[u][0] - gx) ** 2 + (pts[u][1] - gy) ** 2)
-        return cand
-
-    if max_steps is None:
-        max_steps = int(field.max(initial=0)) * 4 + 4 * m + 100
-    order = sorted(range(m), key=lambda i: -float(cost[i, goal_of[i]]))
-    out = []
-    for _ in range(max_steps):
-        if time.perf_counter() > deadline:
-            return None
-        done = True
-        # target swaps and rotations
-        for i in order:
-            if where[i] == goal_vert[goal_of[i]]:
-                continue
-            done = False
-            c = nexts(i)
-            if not c:
-                continue
-            j = occ[c[0]]
-            if j < 0:
-                continue
-            if where[j] == goal_vert[goal_of[j]]:
-                goal_of[i], goal_of[j] = goal_of[j], goal_of[i]
-                continue
-            chain = [i]
-            seen = {i}
-            k = j
-            while k >= 0 and k not in seen and where[k] != goal_vert[goal_of[k]]:
-                chain.append(k)
-                seen.add(k)
-                ck = nexts(k)
-                k = occ[ck[0]] if ck else -1
-            if k == i and len(chain) > 1:
-                first = goal_of[chain[0]]
-                for x in range(len(chain) - 1):
-                    goal_of[chain[x]] = goal_of[chain[x + 1]]
-                goal_of[chain[-1]] = first
-        if done:
-            return out
-        moved = False
-        for i in order:
-            if where[i] == goal_vert[goal_of[i]]:
-                continue
-            for u in nexts(i):
-                if occ[u] < 0:
-                    occ[where[i]] = -1
-                    occ[u] = i
-                    where[i] = u
-                    moved = True
-                    break
-        if moved:
-            out.append(np.array(where))
-    return None
-
-
-# ----------------------------------------------------------------------------
-# the stage
+# the stage (routing: :func:`planner.tswap.tswap`)
 
 
 def lattice_waypoints(problem: Problem, deadline: float, spacing: float | None = None) -> np.ndarray | None:

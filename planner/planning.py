@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -17,9 +16,10 @@ from .lattice import lattice_candidates
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
-from .schedule import merge_moves, merge_steps, schedule, shortcut, split_moves, step_clear
-from .passages import passage_points
+from .schedule import merge_steps, shortcut, step_clear
 from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
+from .timing import _drop_idle, _makespan, _timed
+from .tries import _Direct, _name_direct
 from .validate import PlanInvalid, check_plan
 
 __all__ = ["NoPlanFound", "plan"]
@@ -159,13 +159,6 @@ def _plan_inflated(problem: Problem, params: PlannerParams, rng):
     return result, stats
 
 
-def _name_direct(stats: PlanStats, label: str) -> None:
-    """Record which direct try made the plan; the start-target connections are route ``[0, 1]``."""
-    stats.extra["direct"] = label
-    if label in ("one step", "sequenced"):
-        stats.extra["route"] = [0, 1]
-
-
 #: From this many robots on, auto mode routes the swarm through a lattice
 #: (:mod:`planner.lattice`) right after the one-step try: below it the
 #: structured stages find shorter plans in a few milliseconds.
@@ -182,45 +175,6 @@ CLUTTER = 10
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 _CHECK_S_PER_ROBOT = 6e-4  # the exact check of a plan [s per robot], measured at 1000 robots
 _BOUNDS_S_PER_ROBOT2 = 1e-6  # the lower bounds [s per robot squared]: about 0.9 s at 1000 robots
-
-
-@dataclass
-class _Direct:
-    """What auto mode's direct tries found.
-
-    ``best`` is ``(waypoints, sequential steps, makespan, label)`` of the
-    shortest plan found (or ``None``); ``accepted`` when it is good enough
-    to end the search; ``covered`` names the roadmap's structured stages
-    whose whole route was tried here (the roadmap skips them); ``legs``
-    the connections (straight or sequenced legs) of each try.
-    """
-
-    best: tuple | None = None
-    accepted: bool = False
-    covered: set = field(default_factory=set)
-    legs: dict = field(default_factory=dict)
-
-    def offer(self, label: str, legs: int, timed: tuple) -> None:
-        self.legs[label] = legs
-        if self.best is None or timed[2] < self.best[2]:
-            self.best = (*timed, label)
-
-    def final(self, problem: Problem) -> bool:
-        """Whether the roadmap has nothing left to add.
-
-        With a plan in hand, the roadmap's own versions of the stages whose
-        chains failed here rarely beat it (over 20 seeds of every paper
-        scenario they changed one median makespan, Table III row 4's, from
-        1.45x to 1.40x the bound), and its last
-        stage, one graph holding both placements, only pays where robots
-        must file through a narrow passage and the plan is far from the
-        bound (``_GOOD_ENOUGH[-1]``).
-        """
-        if self.accepted:
-            return True
-        if self.best is None:
-            return False
-        return not len(passage_points(problem)) or self.best[2] <= _GOOD_ENOUGH[-1] * lower_bounds(problem)[0]
 
 
 def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float = float("inf"),
@@ -387,51 +341,9 @@ def _chain_waypoints(problem: Problem, chain: list[np.ndarray], deadline: float 
     return raw
 
 
-def _timed(problem: Problem, params: PlannerParams, waypoints, memo: dict | None = None,
-           deadline: float | None = None):
-    """Merge, cut, schedule and merge again: ``(waypoints, sequential steps, makespan)``.
-
-    ``memo`` maps waypoints already timed (by their bytes) to the result.
-
-    Long moves are cut into speed-limited pieces before scheduling, which
-    lets a robot waiting for another start while the other is still on its
-    way; the chosen route's plan is then straightened by :func:`shortcut`.
-    """
-    waypoints = _drop_idle(waypoints)
-    key = waypoints.tobytes()
-    if memo is not None and key in memo:
-        return memo[key]
-    result = _timed_fresh(problem, params, waypoints, deadline)
-    if memo is not None:
-        memo[key] = result
-    return result
-
-
-def _timed_fresh(problem: Problem, params: PlannerParams, waypoints: np.ndarray, deadline: float | None = None):
-    sequential = len(waypoints) - 1
-    waypoints = merge_moves(problem, waypoints, deadline)
-    if params.concurrent:
-        waypoints = merge_steps(problem, schedule(problem, split_moves(problem, waypoints), deadline), deadline)
-    return waypoints, sequential, _makespan(problem, waypoints)
-
-
-def _makespan(problem: Problem, waypoints) -> float:
-    return Plan.from_waypoints(waypoints, problem.radius, problem.margin, problem.max_speed,
-                               problem.max_accel).makespan
-
-
 def _same_set(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether two placements are the same set of points."""
     return bool(np.array_equal(a[np.lexsort(a.T[::-1])], b[np.lexsort(b.T[::-1])]))
-
-
-def _drop_idle(waypoints: list[np.ndarray]) -> np.ndarray:
-    """Remove steps in which no robot moves."""
-    out = [waypoints[0]]
-    for w in waypoints[1:]:
-        if not np.array_equal(w, out[-1]):
-            out.append(w)
-    return np.asarray(out)
 
 
 def _fill_stats(stats: PlanStats, plan: Plan, clearance: float):

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import planner.connect as connect
 import planner.planning as planning
+import planner.sequenced as sequenced
 from planner import Plan, PlannerParams, check_plan, plan
 from planner.bounds import lower_bounds
 from planner.connect import sequenced_moves
@@ -48,7 +48,7 @@ def test_a_group_whose_robots_would_meet_is_refused(monkeypatch):
     assert sequenced_moves(problem, problem.start, problem.target, groups=True) is None
     # Negative control: without the closest-approach check inside the group,
     # the grouped move is returned and the exact validator rejects it.
-    monkeypatch.setattr(connect, "closest_approach", lambda a, b, c, d: np.full((3, 3, 1), np.inf))
+    monkeypatch.setattr(sequenced, "closest_approach", lambda a, b, c, d: np.full((3, 3, 1), np.inf))
     seq = sequenced_moves(problem, problem.start, problem.target, groups=True)
     assert seq is not None
     with pytest.raises(PlanInvalid):

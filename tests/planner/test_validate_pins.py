@@ -14,7 +14,7 @@ from planner import Plan, PlanInvalid, check_plan, min_clearance
 from planner.plan import min_jerk_s
 from planner.problem import Circle, Polygon, Problem
 from planner.validate import Clearance, _same_set, _theta_to_time
-from sim.contacts import static_clearances
+from sim.execute.contacts import static_clearances
 
 R = 1.0
 

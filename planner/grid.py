@@ -1,0 +1,80 @@
+"""The square lattice of the lattice stage (:mod:`planner.lattice`): clear
+points at a spacing of about ``sqrt(2) * separation`` and the clear segments
+between 4-neighbours (both exact), with the connected components."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .problem import Problem
+
+__all__ = ["Lattice", "build_lattice", "lattice_spacing"]
+
+
+_SLACK = 1.0 + 1e-6  # spacing over sqrt(2) * separation
+_MAX_VERTICES = 60_000
+_FIELD_ENTRIES = 10_000_000  # robots x vertices in the distance fields
+
+
+@dataclass(frozen=True, eq=False)
+class Lattice:
+    """Clear lattice points ``points (V, 2)``, their 4-neighbours ``nbr (V, 4)``
+    (-1 where there is none or the edge is blocked), the spacing and the
+    connected component of every vertex."""
+
+    points: np.ndarray
+    nbr: np.ndarray
+    spacing: float
+    component: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.points)
+
+
+def lattice_spacing(problem: Problem) -> float:
+    """``sqrt(2) * separation`` (plus a hair), larger when the lattice would be too big."""
+    a = math.sqrt(2.0) * problem.separation * _SLACK
+    cap = min(_MAX_VERTICES, _FIELD_ENTRIES // max(problem.m, 1))
+    return max(a, math.sqrt(problem.width * problem.height / cap))
+
+
+def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] = (0.0, 0.0)) -> Lattice:
+    """The lattice of clear points and clear 4-neighbour edges (both exact); ``shift``
+    moves it by that fraction of the spacing."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    c = problem.clearance
+    nx = int(math.floor((problem.width - 2 * c) / spacing - shift[0])) + 1
+    ny = int(math.floor((problem.height - 2 * c) / spacing - shift[1])) + 1
+    # centred between the walls' margins, then shifted
+    ox = c + 0.5 * (problem.width - 2 * c - (nx - 1 + shift[0]) * spacing) + shift[0] * spacing
+    oy = c + 0.5 * (problem.height - 2 * c - (ny - 1 + shift[1]) * spacing) + shift[1] * spacing
+    gx, gy = np.meshgrid(ox + spacing * np.arange(nx), oy + spacing * np.arange(ny), indexing="ij")
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    ok = problem.env.points_clear(pts, c)
+    vid = np.full(nx * ny, -1)
+    vid[ok] = np.arange(int(ok.sum()))
+    vid = vid.reshape(nx, ny)
+    pts = pts[ok]
+    nbr = np.full((len(pts), 4), -1)
+    rows, cols = [], []
+    for k, (dx, dy) in enumerate(((1, 0), (0, 1))):
+        a = vid[: nx - dx, : ny - dy].ravel()
+        b = vid[dx:, dy:].ravel()
+        both = (a >= 0) & (b >= 0)
+        a, b = a[both], b[both]
+        clear = problem.env.segments_clear(pts[a], pts[b], c)
+        a, b = a[clear], b[clear]
+        nbr[a, k] = b  # right / up
+        nbr[b, k + 2] = a  # left / down
+        rows.append(a)
+        cols.append(b)
+    r, cc = np.concatenate(rows), np.concatenate(cols)
+    g = coo_matrix((np.ones(len(r)), (r, cc)), shape=(len(pts), len(pts)))
+    _, comp = connected_components(g, directed=False)
+    return Lattice(pts, nbr, float(spacing), comp)

@@ -1,0 +1,50 @@
+"""What a planning run did: :class:`PlanStats`, and its JSON form."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+__all__ = ["PlanStats"]
+
+
+@dataclass
+class PlanStats:
+    """What a planning run did.  Times in seconds, lengths in workspace units.
+
+    ``min_clearance`` is the exact smallest gap between two disc boundaries,
+    or between a disc and an obstacle or wall, over the whole plan (a plan
+    is valid when it is at least the margin).
+    """
+
+    found: bool = False
+    planning_time_s: float = 0.0
+    g: int = 0
+    q: int = 0
+    graphs: int = 0
+    connections: int = 0
+    steps: int = 0
+    makespan_s: float = 0.0
+    path_length: float = 0.0
+    min_clearance: float = float("nan")
+    makespan_lower_bound_s: float = float("nan")
+    path_length_lower_bound: float = float("nan")
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        extra = d.pop("extra")
+        d.update(extra)
+        return {k: _jsonable(v) for k, v in d.items()}
+
+
+def _jsonable(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, (np.floating,)):
+        return _jsonable(float(v))
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    return v

@@ -1,0 +1,135 @@
+"""Routing on the lattice with goal swapping: TSWAP (Okumura and Defago, AIJ
+2023) between two sets of lattice vertices (see :mod:`planner.lattice`)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .grid import Lattice
+
+__all__ = ["tswap"]
+
+
+def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | None:
+    """``(len(sources), V)`` lattice distances (steps) from each source; -1 unreachable."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import shortest_path
+
+    v = np.repeat(np.arange(lat.n), 4)
+    w = lat.nbr.ravel()
+    ok = w >= 0
+    g = coo_matrix((np.ones(int(ok.sum())), (v[ok], w[ok])), shape=(lat.n, lat.n)).tocsr()
+    dtype = np.int16 if lat.n < 30_000 else np.int32
+    out = np.empty((len(sources), lat.n), dtype)
+    chunk = max(1, min(128, 4_000_000 // max(lat.n, 1)))  # small chunks: the deadline is checked between
+    for s in range(0, len(sources), chunk):
+        if time.perf_counter() > deadline:
+            return None
+        d = shortest_path(g, method="D", directed=False, unweighted=True, indices=sources[s : s + chunk])
+        d[~np.isfinite(d)] = -1
+        out[s : s + chunk] = d
+    return out
+
+
+def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float,
+          max_steps: int | None = None) -> list[np.ndarray] | None:
+    """Time steps (vertex of every robot after each) from ``start_v`` to the set ``goal_v``.
+
+    TSWAP (see :mod:`planner.lattice`), synchronous: per time step, first
+    target swaps (a robot whose next vertex holds a robot resting on its
+    own target takes that target, and gives its own) and rotations of
+    targets along waiting cycles, then every robot not on its target moves
+    to its next vertex when that is free at that moment.  ``None`` when
+    the deadline or the step cap comes first, or a target is unreachable.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    m = len(start_v)
+    goals = np.asarray(goal_v, int)
+    field = _fields(lat, goals, deadline)
+    if field is None:
+        return None
+    cost = field[:, start_v].T.astype(float)  # (robot, goal)
+    if (cost < 0).any():
+        # robots and targets in different lattice components: only matching counts can work
+        if np.any(np.bincount(lat.component[start_v], minlength=lat.n)
+                  != np.bincount(lat.component[goals], minlength=lat.n)):
+            return None
+        cost[cost < 0] = 1e9
+    _, goal_of = linear_sum_assignment(cost**2)
+    goal_of = goal_of.tolist()  # robot -> goal index
+    pts = lat.points
+    nbr = lat.nbr.tolist()
+    gpts = pts[goals]
+    where = [int(v) for v in start_v]
+    occ = np.full(lat.n, -1)
+    occ[start_v] = np.arange(m)
+    occ = occ.tolist()
+    goal_vert = goals.tolist()
+    frows = [field[g] for g in range(m)]
+
+    def nexts(i: int) -> list[int]:
+        """Neighbours one step closer to robot i's target, the most direct first."""
+        g = goal_of[i]
+        row = frows[g]
+        v = where[i]
+        dv = row[v]
+        cand = [u for u in nbr[v] if u >= 0 and row[u] == dv - 1]
+        if len(cand) > 1:
+            gx, gy = gpts[g]
+            cand.sort(key=lambda u: (pts[u][0] - gx) ** 2 + (pts[u][1] - gy) ** 2)
+        return cand
+
+    if max_steps is None:
+        max_steps = int(field.max(initial=0)) * 4 + 4 * m + 100
+    order = sorted(range(m), key=lambda i: -float(cost[i, goal_of[i]]))
+    out = []
+    for _ in range(max_steps):
+        if time.perf_counter() > deadline:
+            return None
+        done = True
+        # target swaps and rotations
+        for i in order:
+            if where[i] == goal_vert[goal_of[i]]:
+                continue
+            done = False
+            c = nexts(i)
+            if not c:
+                continue
+            j = occ[c[0]]
+            if j < 0:
+                continue
+            if where[j] == goal_vert[goal_of[j]]:
+                goal_of[i], goal_of[j] = goal_of[j], goal_of[i]
+                continue
+            chain = [i]
+            seen = {i}
+            k = j
+            while k >= 0 and k not in seen and where[k] != goal_vert[goal_of[k]]:
+                chain.append(k)
+                seen.add(k)
+                ck = nexts(k)
+                k = occ[ck[0]] if ck else -1
+            if k == i and len(chain) > 1:
+                first = goal_of[chain[0]]
+                for x in range(len(chain) - 1):
+                    goal_of[chain[x]] = goal_of[chain[x + 1]]
+                goal_of[chain[-1]] = first
+        if done:
+            return out
+        moved = False
+        for i in order:
+            if where[i] == goal_vert[goal_of[i]]:
+                continue
+            for u in nexts(i):
+                if occ[u] < 0:
+                    occ[where[i]] = -1
+                    occ[u] = i
+                    where[i] = u
+                    moved = True
+                    break
+        if moved:
+            out.append(np.array(where))
+    return None
