@@ -18,13 +18,16 @@ MAX_HOLD = 60.0  # [s]
 
 
 def _read_placement(r: _Reader, value, f: str, width, height, base: Path = Path("."), *,
-                    chained: bool = False) -> FormationSpec:
+                    chained: bool = False, grid=None) -> FormationSpec:
     if not isinstance(value, dict):
         r.fail(f, f"must be a mapping with formation or points, got {_kind(value)}")
     extra = ("hold",) if chained else ()
     hold = 0.0
     if chained:
         hold = r.number(value.get("hold", 2.0), f"{f}.hold", ge=0, le=MAX_HOLD)
+    if "scen" in value:
+        r.mapping(value, f, ("scen", "count") + extra)
+        return FormationSpec(points=_read_scen_cells(r, value, f, base, grid), hold=hold)
     if "points" in value:
         r.mapping(value, f, ("points",) + extra)
         pts = value["points"]
@@ -66,6 +69,27 @@ def _read_placement(r: _Reader, value, f: str, width, height, base: Path = Path(
         center = r.inside(cen, f"{f}.center", width, height)
     return FormationSpec(formation=name, scale=scale, rotation=rotation, center=center, text=text, font=font,
                          fill=fill, strokes=strokes, hold=hold)
+
+
+def _read_scen_cells(r: _Reader, value: dict, f: str, base: Path, grid) -> tuple[tuple[float, float], ...]:
+    """``{scen: FILE, count: N}``: the centres of the first N agents' start cells (goal cells for a target)."""
+    from .maps import MapError, resolve
+    from .scen import read_scen
+
+    if grid is None:
+        r.fail(f"{f}.scen", "needs a map: (a .scen names cells of a map's grid)")
+    if "count" not in value:
+        r.fail(f"{f}.count", "is required: how many of the .scen's agents to take")
+    n = r.integer(value["count"], f"{f}.count", ge=1, le=_MAX_ROBOTS)
+    name = value["scen"]
+    if not isinstance(name, str) or not name or len(name) > 4096 or "\x00" in name:
+        r.fail(f"{f}.scen", f"must be a path to a MovingAI .scen file, got {_kind(name)}")
+    path = resolve(name, base)
+    try:
+        cells = read_scen(path, n, grid.grid, goal=f != "start")
+    except MapError as exc:
+        r.fail(f"{f}.{'count' if exc.key == 'count' else 'scen'}", exc.reason)
+    return tuple(grid.grid.centre(int(c), int(rw), grid.cell) for c, rw in cells)
 
 
 def _read_drawing(r: _Reader, value: dict, f: str, base: Path):

@@ -1,12 +1,19 @@
-"""The ``obstacles:`` section: polygons (checked simple in O(k log k)), circles and random ones."""
+"""The ``obstacles:`` section (polygons checked simple in O(k log k), circles, random ones) and ``map:``.
+
+The caps of :data:`model._MAX_OBSTACLES` and :data:`model._MAX_VERTICES` hold
+for the hand-written ``obstacles:``; a ``map:`` adds its rectangles under the
+caps of :mod:`sim.scenario.maps` (cells and pieces, measured there).
+"""
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from planner.inputfile import echo_key
+from planner.inputfile import echo_key, echo_path
 from planner.problem import Circle, Polygon
 
 from .fields import _kind, _Reader
@@ -98,3 +105,53 @@ def _polygon_defect(pts: np.ndarray) -> str | None:
     if shapely.area(shapely.Polygon(pts)) <= 1e-12:
         return "has zero area (its vertices are collinear)"
     return None
+
+
+@dataclass(frozen=True, eq=False)
+class _MapInfo:
+    """A read ``map:``: its grid, cell size [units], workspace size [units] and obstacle rectangles."""
+
+    path: Path
+    grid: object  # maps.Grid
+    cell: float
+    width: float
+    height: float
+    obstacles: tuple[Polygon, ...]
+
+
+def _read_map(r: _Reader, value, base: Path) -> _MapInfo:
+    """``map: {file, cell, origin, threshold}``: the workspace and the obstacles of an occupancy grid.
+
+    ``origin`` (the world position of the map's lower-left corner, as in ROS)
+    is checked and not used: scenario positions are measured from that corner.
+    """
+    from .maps import MapError, cover, read_grid, resolve
+
+    m = r.mapping(value, "map", ("file", "cell", "origin", "threshold"))
+    if "file" not in m:
+        r.fail("map.file", "is required (a MovingAI .map, a ROS map_server .yaml, a .png or a .pgm)")
+    f = m["file"]
+    if not isinstance(f, str) or not f or len(f) > 4096 or "\x00" in f:
+        r.fail("map.file", f"must be a path to a map file, got {_kind(f)}")
+    path = resolve(f, base)
+    threshold = None if m.get("threshold") is None else r.number(m["threshold"], "map.threshold", ge=1, le=255)
+    if "origin" in m:
+        r.pair(m["origin"], "map.origin", ge=-1e9, le=1e9)
+    try:
+        grid = read_grid(path, threshold)
+        cell = grid.cell
+        if m.get("cell") is not None or cell is None:
+            if "cell" not in m:
+                r.fail("map.cell", "is required: the side of one map cell [units]")
+            cell = r.number(m["cell"], "map.cell", gt=0, le=_MAX_SIDE)
+        width, height = grid.cols * cell, grid.rows * cell
+        if not (1 <= width <= _MAX_SIDE and 1 <= height <= _MAX_SIDE):
+            r.fail("map.cell", f"{cell:g} makes the workspace {width:g} x {height:g} ({grid.cols} x {grid.rows} "
+                   f"cells); each side must be in [1, {_MAX_SIDE:g}]")
+        try:
+            pieces = tuple(Polygon(p) for p in cover(grid, cell))
+        except MapError as exc:
+            r.fail("map.file", f"{echo_path(path.name, 60)}: {exc.reason}")
+    except MapError as exc:
+        r.fail(f"map.{exc.key}", exc.reason)
+    return _MapInfo(path, grid, cell, width, height, pieces)

@@ -24,8 +24,18 @@ from planner.inputfile import UnreadableFile, read_text
 
 from .fields import _kind, _Reader
 from .formation_fields import _read_placement, _resolve_count
-from .model import _MAX_NAME, _MAX_SEED, _MAX_SIDE, _MAX_ROBOTS, MAX_FILE_BYTES, FormationSpec, PaperRef, Scenario, ScenarioError
-from .obstacles import _read_obstacles
+from .model import (
+    _MAX_NAME,
+    _MAX_ROBOTS,
+    _MAX_SEED,
+    _MAX_SIDE,
+    MAX_FILE_BYTES,
+    FormationSpec,
+    PaperRef,
+    Scenario,
+    ScenarioError,
+)
+from .obstacles import _read_map, _read_obstacles
 from .params import SimParams
 from .settings import _read_planner, _read_render, _read_sim
 from .yamlfile import YamlRefused, load_yaml
@@ -33,7 +43,7 @@ from .yamlfile import YamlRefused, load_yaml
 __all__ = ["MAX_TARGETS", "read_scenario"]
 
 
-_TOP = ("name", "seed", "workspace", "robots", "obstacles", "start", "target", "targets", "planner", "sim",
+_TOP = ("name", "seed", "workspace", "map", "robots", "obstacles", "start", "target", "targets", "planner", "sim",
         "render", "paper")
 MAX_TARGETS = 16  # legs of a chained scenario
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
@@ -87,7 +97,14 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
         r.fail("name", f"must be 1 to {_MAX_NAME} letters, digits, '.', '_', '-' (a letter or digit "
                f"first), got {_kind(name)}")
     seed = r.integer(doc.get("seed", 0), "seed", ge=0, le=_MAX_SEED)
-    width, height = r.pair(doc.get("workspace", [40, 40]), "workspace", ge=1, le=_MAX_SIDE)
+    grid_map = None
+    if "map" in doc:
+        if "workspace" in doc:
+            r.fail("workspace", "is set by map (columns x cell by rows x cell); give workspace or map, not both")
+        grid_map = _read_map(r, doc["map"], path.parent)
+        width, height = grid_map.width, grid_map.height
+    else:
+        width, height = r.pair(doc.get("workspace", [40, 40]), "workspace", ge=1, le=_MAX_SIDE)
 
     rob = r.mapping(doc.get("robots"), "robots", ("radius", "margin", "count", "max_speed", "max_accel"))
     radius = r.number(rob.get("radius", 1.0), "robots.radius", ge=0.01, le=100)
@@ -97,18 +114,21 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
     max_accel = r.number(rob.get("max_accel", 2.0), "robots.max_accel", ge=0.001, le=10000)
 
     obstacles = _read_obstacles(r, doc.get("obstacles", []), width, height)
+    if grid_map is not None:
+        obstacles = grid_map.obstacles + obstacles
+    _check_scen_counts(r, doc, count)
     base = path.parent
-    start = _read_placement(r, doc["start"], "start", width, height, base)
+    start = _read_placement(r, doc["start"], "start", width, height, base, grid=grid_map)
     targets: tuple[FormationSpec, ...] = ()
     if "targets" in doc:
         legs = doc["targets"]
         if not isinstance(legs, list) or not 1 <= len(legs) <= MAX_TARGETS:
             r.fail("targets", f"must be a list of 1 to {MAX_TARGETS} formations, got {_kind(legs)}")
-        targets = tuple(_read_placement(r, v, f"targets[{i}]", width, height, base, chained=True)
+        targets = tuple(_read_placement(r, v, f"targets[{i}]", width, height, base, chained=True, grid=grid_map)
                         for i, v in enumerate(legs))
         target = targets[-1]
     else:
-        target = _read_placement(r, doc["target"], "target", width, height, base)
+        target = _read_placement(r, doc["target"], "target", width, height, base, grid=grid_map)
     specs = [("start", start)] + ([(f"targets[{i}]", t) for i, t in enumerate(targets)] or [("target", target)])
     count = _resolve_count(r, count, specs, width, height, 2 * radius + margin, radius + margin)
     sim = _read_sim(r, doc.get("sim"), count)
@@ -134,6 +154,18 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
         paper=_read_paper(r, doc.get("paper")),
         targets=targets,
     )
+
+
+def _check_scen_counts(r: _Reader, doc: dict, count: int | None) -> None:
+    """``robots.count``, when given, equals the ``count`` of every placement taken from a .scen."""
+    legs = [("start", doc["start"])] + ([("target", doc["target"])] if "target" in doc else [])
+    if isinstance(doc.get("targets"), list):
+        legs += [(f"targets[{i}]", v) for i, v in enumerate(doc["targets"])]
+    for key, v in legs:
+        if count is not None and isinstance(v, dict) and "scen" in v and v.get("count") != count:
+            n = v.get("count")
+            shown = n if isinstance(n, int) and not isinstance(n, bool) else _kind(n)
+            r.fail("robots.count", f"is {count} but {key}.count takes {shown} agents from its .scen")
 
 
 def _read_paper(r: _Reader, value) -> PaperRef | None:

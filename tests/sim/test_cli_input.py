@@ -213,6 +213,26 @@ CORPUS = {
     "yaml-tag-binary.yaml": ("line 2, column 7", "'!!binary' is not allowed"),
     "yaml-tag-custom.yaml": ("line 4, column 9", "'!robot' is not allowed"),
     "yaml-tag-timestamp-explicit.yaml": ("line 2, column 7", "'!!timestamp' is not allowed"),
+    # map: and .scen files (the files they point at are in tests/data/maps/bad/)
+    "map-and-workspace.yaml": ("workspace", "is set by map"),
+    "map-binary-garbage.yaml": ("map.file", "garbage.map: is not UTF-8 text"),
+    "map-cell-missing.yaml": ("map.cell", "is required"),
+    "map-cells-4096x4096.yaml": ("map.file", "4096 x 4096 cells is more than the 1048576"),
+    "map-height-100000000.yaml": ("map.file", "height must be in [1, 4096] cells, got 100000000"),
+    "map-image-5000x5000.yaml": ("map.file", "5000 x 5000 pixels is larger than 4096 x 4096"),
+    "map-ros-missing-image.yaml": ("map.file", "image nothere.pgm: no such file"),
+    "map-row-too-long.yaml": ("map.file", "row 2 (line 6): has 6 cells, but its header declares width 4"),
+    "map-rows-fewer.yaml": ("map.file", "has 2 map rows, but its header declares height 4"),
+    "map-too-many-pieces.yaml": ("map.file", "gives more than 4096 obstacle rectangles"),
+    "map-truncated.yaml": ("map.file", "has 3 map rows, but its header declares height 4"),
+    "map-unknown-cell.yaml": ("map.file", "row 2, column 3: unknown cell 'x'"),
+    "map-unknown-format.yaml": ("map.file", "unknown map format '.md'"),
+    "map-wrong-header.yaml": ("map.file", "line 2: expected 'height'"),
+    "scen-bad-line.yaml": ("start.scen", "bad-line.scen line 3: start_y must be a whole number"),
+    "scen-count-not-robots-count.yaml": ("robots.count", "is 3 but start.count takes 2 agents"),
+    "scen-count-too-large.yaml": ("start.count", "holds 3 agents, fewer than the count 500"),
+    "scen-without-map.yaml": ("start.scen", "needs a map"),
+    "scen-wrong-map-size.yaml": ("start.scen", "is for a 32 x 32 map, but the map is 4 x 4"),
 }
 
 # Files the physics budget refuses: they are valid until the plan is known,
@@ -330,7 +350,7 @@ print(json.dumps(results))
 def _run_forked(jobs: dict, base: Path) -> dict:
     """Run ``{key: (argv, out_dir, timeout, address_space)}`` through the fork driver."""
     spec = {}
-    for key, (argv, out_dir, timeout, address_space) in jobs.items():
+    for key, (argv, _out_dir, timeout, address_space) in jobs.items():
         logs = base / "logs" / key.replace(":", "-")
         logs.mkdir(parents=True)
         spec[key] = {
@@ -351,7 +371,7 @@ def _run_forked(jobs: dict, base: Path) -> dict:
     assert p.returncode == 0, p.stderr
     status = json.loads(p.stdout.splitlines()[-1])
     out = {}
-    for key, (argv, out_dir, timeout, _) in jobs.items():
+    for key, (_argv, out_dir, _timeout, _) in jobs.items():
         st = status[key]
         out[key] = _Run(
             st["returncode"],

@@ -1,0 +1,267 @@
+"""Grid maps (MovingAI ``.map``, ROS map_server, PNG/PGM) and MovingAI ``.scen`` files.
+
+A map's obstacles must cover every blocked cell and no free cell: blocked
+cells lie inside the cover, free cell centres are at least ``cell / 2`` from
+it, and the cover's area is the blocked area (so the free area is exactly
+the free cells').  The benchmark maps of ``tests/data/maps`` load in bounded
+time; small ROS and PNG maps plan and run end to end.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from planner.geometry import Environment
+from planner.problem import Polygon
+from sim.runner import run_scenario
+from sim.scenario import ScenarioError, build_problem, read_scenario
+from sim.scenario.maps import MAX_PIECES, Grid, MapError, cover, read_grid
+
+ROOT = Path(__file__).resolve().parents[2]
+MAPS = ROOT / "tests" / "data" / "maps"
+EXAMPLES = ROOT / "scenarios" / "maps"
+
+TINY = """\
+type octile
+height 4
+width 5
+map
+@...T
+.O.G.
+..W.S
+@@...
+"""
+TINY_BLOCKED = np.array([
+    [1, 0, 0, 0, 1],
+    [0, 1, 0, 0, 0],
+    [0, 0, 1, 0, 0],
+    [1, 1, 0, 0, 0],
+], bool)
+
+
+def _rect_area(p: np.ndarray) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
+
+
+def _check_cover(grid: Grid, cell: float) -> list[np.ndarray]:
+    """The cover holds every blocked cell, keeps every free cell free, and has exactly the blocked area."""
+    pieces = cover(grid, cell)
+    env = Environment.build(grid.cols * cell, grid.rows * cell, [Polygon(p) for p in pieces])
+    rows, cols = np.indices(grid.blocked.shape)
+    centres = np.stack([(cols + 0.5) * cell, (grid.rows - rows - 0.5) * cell], axis=-1).reshape(-1, 2)
+    blocked = grid.blocked.ravel()
+    if pieces:
+        inside = env._inside(centres).any(axis=1)
+        assert np.array_equal(inside, blocked)
+        d = _dist_to_polys(centres[~blocked], pieces)
+        assert np.all(d >= cell / 2 - 1e-9), d.min()
+    area = sum(_rect_area(p) for p in pieces)
+    assert area >= blocked.sum() * cell**2 - 1e-9
+    free_area = grid.cols * grid.rows * cell**2 - area  # the rectangles do not overlap
+    assert free_area <= (~blocked).sum() * cell**2 + 1e-9
+    return pieces
+
+
+def _dist_to_polys(pts: np.ndarray, pieces: list[np.ndarray]) -> np.ndarray:
+    from planner.geometry import point_segment_distance
+
+    a = np.concatenate(pieces)
+    b = np.concatenate([np.roll(p, -1, axis=0) for p in pieces])
+    return point_segment_distance(pts[:, None, :], a[None], b[None]).min(axis=1)
+
+
+def test_movingai_cells_and_cover(tmp_path):
+    path = tmp_path / "tiny.map"
+    path.write_text(TINY)
+    grid = read_grid(path)
+    assert np.array_equal(grid.blocked, TINY_BLOCKED)
+    _check_cover(grid, 1.5)
+
+
+def test_row_zero_is_the_top(tmp_path):
+    path = tmp_path / "top.map"
+    path.write_text("type octile\nheight 3\nwidth 2\nmap\n@.\n..\n..\n")
+    (piece,) = cover(read_grid(path), 2.0)
+    assert piece[:, 0].min() == 0 and piece[:, 0].max() == 2
+    assert piece[:, 1].min() == 4 and piece[:, 1].max() == 6  # the top row of a 6-unit-high map
+
+
+def test_benchmark_maps_cover_exactly():
+    for f in sorted(MAPS.glob("*.map")):
+        grid = read_grid(f)
+        pieces = cover(grid, 1.0)
+        assert sum(_rect_area(p) for p in pieces) == pytest.approx(grid.blocked.sum()), f.name
+
+
+def test_cover_of_random_grids_is_exact():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        grid = Grid(rng.random((int(rng.integers(1, 12)), int(rng.integers(1, 12)))) < rng.uniform(0.1, 0.9))
+        _check_cover(grid, float(rng.uniform(0.5, 3)))
+
+
+def test_cover_refuses_too_many_pieces_quickly():
+    checker = Grid((np.add.outer(np.arange(1024), np.arange(1024)) % 2) == 0)
+    t = time.perf_counter()
+    with pytest.raises(MapError, match=f"more than {MAX_PIECES} obstacle rectangles"):
+        cover(checker, 0.5)
+    assert time.perf_counter() - t < 2.0
+
+
+def _tiny_scenario(tmp_path, extra: str, map_name="tiny.map", map_text=TINY) -> Path:
+    (tmp_path / map_name).write_text(map_text)
+    path = tmp_path / "s.yaml"
+    path.write_text(f"map: {{file: {map_name}, cell: 3}}\nrobots: {{radius: 1.0, margin: 0.1}}\n{extra}")
+    return path
+
+
+def test_scen_starts_and_targets_are_cell_centres(tmp_path):
+    (tmp_path / "a.scen").write_text(
+        "version 1\n"
+        "0\ttiny.map\t5\t4\t1\t0\t3\t1\t2.0\n"  # start (col 1, row 0) -> goal (col 3, row 1)
+        "0\ttiny.map\t5\t4\t4\t3\t0\t1\t5.0\n"
+        "0\ttiny.map\t5\t4\t2\t1\t2\t0\t1.0\n"
+    )
+    path = _tiny_scenario(tmp_path, "start: {scen: a.scen, count: 2}\ntarget: {scen: a.scen, count: 2}\n")
+    s = read_scenario(path)
+    assert (s.width, s.height) == (15.0, 12.0)
+    assert s.count == 2
+    assert s.start.points == ((4.5, 10.5), (13.5, 1.5))
+    assert s.target.points == ((10.5, 7.5), (1.5, 7.5))
+    problem = build_problem(s, np.random.default_rng(0))
+    assert len(problem.obstacles) == len(cover(read_grid(tmp_path / "tiny.map"), 3.0))
+
+
+def test_scen_checks_blocked_cells_and_sizes(tmp_path):
+    (tmp_path / "a.scen").write_text("version 1\n0\ttiny.map\t5\t4\t0\t0\t3\t1\t2.0\n")
+    path = _tiny_scenario(tmp_path, "start: {scen: a.scen, count: 1}\ntarget: {scen: a.scen, count: 1}\n")
+    with pytest.raises(ScenarioError, match=r"start cell \(0, 0\) \(column, row from the top\) is blocked"):
+        read_scenario(path)
+
+
+def test_map_and_obstacles_add_up(tmp_path):
+    path = _tiny_scenario(tmp_path, "obstacles: [{circle: {center: [7.5, 4.5], radius: 0.5}}]\n"
+                                    "robots: {count: 2}\nstart: {points: [[4.5, 10.5], [13.5, 1.5]]}\n"
+                                    "target: {points: [[10.5, 7.5], [13.5, 4.5]]}\n")
+    text = path.read_text().replace("robots: {radius: 1.0, margin: 0.1}\n", "")
+    path.write_text(text)
+    s = read_scenario(path)
+    assert len(s.obstacles) == len(cover(read_grid(tmp_path / "tiny.map"), 3.0)) + 1
+
+
+def _pgm(path: Path, values: np.ndarray) -> None:
+    Image.fromarray(values.astype(np.uint8)).save(path)
+
+
+def _ros(tmp_path, values, negate=0, occ=0.65, free=0.196) -> Grid:
+    _pgm(tmp_path / "m.pgm", values)
+    (tmp_path / "m.yaml").write_text(f"image: m.pgm\nresolution: 0.5\norigin: [-1.0, 2.0, 0.0]\n"
+                                     f"occupied_thresh: {occ}\nfree_thresh: {free}\nnegate: {negate}\n")
+    return read_grid(tmp_path / "m.yaml")
+
+
+def test_ros_thresholds_and_negate(tmp_path):
+    values = np.array([[0, 100, 205, 254, 255]])
+    g = _ros(tmp_path, values)
+    assert g.cell == 0.5
+    # occupancy (255 - p) / 255: 1.0, 0.61 (unknown: blocked), 0.196 (not < free_thresh: blocked), 0.004, 0
+    assert g.blocked.tolist() == [[True, True, True, False, False]]
+    g = _ros(tmp_path, values, negate=1)  # occupancy p / 255: 0, 0.39, 0.80, 1.0, 1.0
+    assert g.blocked.tolist() == [[False, True, True, True, True]]
+    g = _ros(tmp_path, values, occ=0.9, free=0.7)  # occupancy 0.61 is now free
+    assert g.blocked.tolist() == [[True, False, False, False, False]]
+
+
+def test_ros_cell_defaults_to_resolution(tmp_path):
+    values = np.full((8, 12), 254)
+    values[2:4, 3:9] = 0
+    _pgm(tmp_path / "m.pgm", values)
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.5\norigin: [0, 0, 0]\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\nnegate: 0\n")
+    path = tmp_path / "s.yaml"
+    path.write_text("map: {file: m.yaml}\nrobots: {radius: 0.2, margin: 0.05, count: 2}\n"
+                    "start: {points: [[0.5, 0.5], [5.5, 0.5]]}\ntarget: {points: [[0.5, 3.5], [5.5, 3.5]]}\n")
+    s = read_scenario(path)
+    assert (s.width, s.height) == (6.0, 4.0)
+    (piece,) = s.obstacles
+    assert piece.vertices[:, 0].min() == 1.5 and piece.vertices[:, 0].max() == 4.5
+    assert piece.vertices[:, 1].min() == 2.0 and piece.vertices[:, 1].max() == 3.0  # rows 2-3 of 8, y flipped
+
+
+def test_png_threshold(tmp_path):
+    rgb = np.full((2, 3, 3), 255, np.uint8)
+    rgb[0, 0] = (0, 0, 0)
+    rgb[0, 1] = (120, 120, 120)
+    rgb[1, 2] = (200, 200, 200)
+    Image.fromarray(rgb).save(tmp_path / "m.png")
+    assert read_grid(tmp_path / "m.png").blocked.tolist() == [[True, True, False], [False, False, False]]
+    assert read_grid(tmp_path / "m.png", threshold=100).blocked.tolist() == [[True, False, False],
+                                                                             [False, False, False]]
+    assert read_grid(tmp_path / "m.png", threshold=250).blocked.tolist() == [[True, True, False],
+                                                                             [False, False, True]]
+
+
+def test_huge_image_refused_from_its_header(tmp_path):
+    Image.new("L", (8000, 10), 255).save(tmp_path / "wide.png")
+    with pytest.raises(MapError, match="8000 x 10 pixels is larger than 4096 x 4096"):
+        read_grid(tmp_path / "wide.png")
+    Image.new("L", (2048, 1024), 255).save(tmp_path / "big.png")
+    with pytest.raises(MapError, match="2048 x 1024 cells is more than the 1048576"):
+        read_grid(tmp_path / "big.png")
+
+
+@pytest.mark.parametrize("name", ["two-rooms-ros.yaml", "pillars-png.yaml"])
+def test_image_maps_plan_and_run(name, tmp_path):
+    result = run_scenario(EXAMPLES / name, out_dir=tmp_path, render=False, out=None)
+    assert result.exit_code == 0, result.report
+    assert result.report["sim"]["contacts"] == 0
+    assert result.report["plan"]["valid"] is True
+
+
+# name, cells, rectangles (measured)
+BENCHMARK = [
+    ("room-32-32-4", 32 * 32, 134),
+    ("maze-32-32-4", 32 * 32, 26),
+    ("random-32-32-20", 32 * 32, 141),
+    ("den312d", 65 * 81, 147),
+    ("warehouse-10-20-10-2-1", 161 * 63, 204),
+    ("warehouse-20-40-10-2-2", 340 * 164, 804),
+    ("Berlin_1_256", 256 * 256, 1213),
+]
+
+
+@pytest.mark.parametrize("name,cells,pieces", BENCHMARK, ids=[b[0] for b in BENCHMARK])
+def test_benchmark_map_loads_quickly(name, cells, pieces, tmp_path):
+    scen = MAPS / f"{name}-random-1.scen"
+    scen = scen if scen.exists() else MAPS / f"{name}-swarmform-1.scen"
+    path = tmp_path / "s.yaml"
+    path.write_text(f"map: {{file: {MAPS / (name + '.map')}, cell: 2.4}}\nrobots: {{radius: 1.0, margin: 0.1}}\n"
+                    f"start: {{scen: {scen}, count: 10}}\ntarget: {{scen: {scen}, count: 10}}\n")
+    t = time.perf_counter()
+    s = read_scenario(path)
+    problem = build_problem(s, np.random.default_rng(0))
+    seconds = time.perf_counter() - t
+    assert len(problem.obstacles) == pieces
+    assert s.width * s.height == pytest.approx(cells * 2.4**2)
+    assert problem.m == 10
+    assert seconds < 2.0, seconds  # measured: 0.01 s to 0.1 s
+
+
+def test_shipped_map_scenarios_show(tmp_path):
+    for path in sorted(EXAMPLES.glob("*.yaml")):  # the ROS map_server file is two-rooms-map.yml
+        s = read_scenario(path)
+        problem = build_problem(s, np.random.default_rng(s.seed))
+        assert problem.m == s.count
+
+
+@pytest.mark.slow
+def test_room_100_runs_clean(tmp_path):
+    """The 100-robot room scenario: measured 7 s of planning, 20 s in all."""
+    result = run_scenario(EXAMPLES / "room-32-32-4-100.yaml", out_dir=tmp_path, render=False, out=None)
+    assert result.exit_code == 0, result.report
