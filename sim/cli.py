@@ -62,20 +62,19 @@ def _cmd_formations(args) -> int:
 
 def _load(path: str, seed: int | None):
     """Read a scenario and build its problem with the run's one generator."""
-    import numpy as np
 
     from .scenario import build_problem, read_scenario
 
     scenario = read_scenario(path)
     seed = scenario.seed if seed is None else seed
-    rng = np.random.default_rng(seed)
+    rng = scenario.generator(seed)
     problem = build_problem(scenario, rng)
     return scenario, seed, rng, problem
 
 
 def _cmd_show(args) -> int:
-    from .output.media import write_png
     from .output.files import OutputPathError, check_out_file
+    from .output.media import write_png
     from .output.render import draw_scenario
 
     if args.output:
@@ -125,20 +124,19 @@ def _params_with_time_limit(scenario, time_limit):
 
 
 def _cmd_plan(args) -> int:
-    import numpy as np
 
     from planner import NoPlanFound
 
     from .execute.legs import plan_legs
-    from .output.media import atomic_path
     from .output.files import check_out_file
+    from .output.media import atomic_path
     from .scenario import build_legs, read_scenario
 
     if args.output:
         check_out_file(args.output, "--output")
     scenario = read_scenario(args.scenario)
     seed = scenario.seed if args.seed is None else args.seed
-    rng = np.random.default_rng(seed)
+    rng = scenario.generator(seed)
     problem, targets = build_legs(scenario, rng)
     out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-plan.json"
     if not args.output:
@@ -163,8 +161,8 @@ def _cmd_plan(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .scenario.overrides import combinations, parse_set
     from .runner import run_scenario
+    from .scenario.overrides import combinations, parse_set
 
     result = run_scenario(
         args.scenario,
@@ -179,6 +177,29 @@ def _cmd_run(args) -> int:
 
     print(f"  {verdict(result.report)[1]}")
     return result.exit_code
+
+
+def _number_in(low: float, high: float, what: str):
+    """A parser for finite numbers in ``(low, high]``, said as ``what``."""
+
+    def parse(value: str) -> float:
+        import math
+
+        try:
+            v = float(value) if len(value) <= 40 else math.nan
+        except ValueError:
+            v = math.nan
+        if not (math.isfinite(v) and low < v <= high):
+            raise argparse.ArgumentTypeError(f"must be {what} in ({low:g}, {high:g}], got {value[:40]!r}")
+        return v
+
+    return parse
+
+
+def _cmd_export(args) -> int:
+    from .output.export import cmd_export
+
+    return cmd_export(args)
 
 
 def _version() -> str:
@@ -242,6 +263,31 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="set a scenario field (dotted path, YAML scalar), e.g. --set robots.margin=0.2; repeatable")
     r.set_defaults(func=_cmd_run)
+
+    from .check import add_check_parser
+
+    add_check_parser(sub, parents=[common])
+
+    e = sub.add_parser(
+        "export", parents=[common],
+        help="write a plan's trajectories: samples (csv, json) or exact polynomials (poly, Crazyswarm CSV)",
+        description="Write a plan file's trajectories.  csv and json: position and velocity of every robot "
+        "at --rate Hz and at the final time (csv columns robot,t,x,y,vx,vy; json "
+        '{"rate", "makespan", "robots": [{"t", "x", "y", "vx", "vy"}]}), to -o FILE or standard output.  '
+        "poly: per robot, one piece per plan step, the exact degree-5 minimum-jerk polynomial, in the CSV "
+        "format of Crazyswarm's uploadTrajectory (duration,x^0..x^7,y^0..y^7,z^0..z^7,yaw^0..yaw^7), "
+        "one file DIR/robotNNN.csv per robot.",
+    )
+    e.add_argument("plan", help="plan JSON file (swarmform plan writes one)")
+    e.add_argument("--format", choices=("csv", "json", "poly"), default="csv", help="output format (default csv)")
+    e.add_argument("--rate", type=_number_in(0, 10_000, "a number of samples per second"), default=20.0,
+                   help="csv, json: samples per second [Hz] (default 20)")
+    e.add_argument("--height", type=_number_in(-1e6, 1e6, "a number of workspace units"), default=0.0,
+                   help="poly: the constant z of every trajectory [workspace units] (default 0)")
+    e.add_argument("-o", "--output", metavar="FILE_OR_DIR",
+                   help="csv, json: the file (default standard output); poly: the folder "
+                   "(default PLAN-poly beside the plan file)")
+    e.set_defaults(func=_cmd_export)
 
     from .tune.cli import add_tune_parser
 
