@@ -10,7 +10,9 @@ anti-aliased.
 Conventions, the same in every picture and video (and named in the legend):
 a start is a hollow ring, a target a filled disc, a robot a disc in its own
 colour with a dark outline, a trail a pale line, a contact red, a robot that
-failed grey with a dark cross.
+failed grey with a dark cross.  Lengths are shown by a scale bar of a round
+length (``10 units``) at the right of the legend band and by ticks at the
+same spacing along the walls, from the workspace's origin (bottom left).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 from planner.problem import Circle, Problem
 
 from .._pygame import pygame
+
 __all__ = [
     "BACKGROUND",
     "CONTACT",
@@ -34,6 +37,7 @@ __all__ = [
     "fit_text",
     "frame_size",
     "label_font",
+    "nice_length",
     "robot_colors",
     "tint",
 ]
@@ -48,6 +52,7 @@ CONTACT = (230, 20, 20)
 OUTLINE = (60, 60, 70)
 FAILED = (170, 170, 170)  # a robot that stopped actuating (videos), drawn with a cross
 LABEL_ON_CONTACT = (255, 255, 255)
+SCALE = WALL  # the scale bar and the wall ticks
 
 MIN_SIZE = 480
 """Smallest automatic frame size [px]."""
@@ -72,6 +77,18 @@ def robot_colors(m: int) -> list[tuple[int, int, int]]:
         c.hsva = (25.0 + h * 310.0, 55.0, 85.0, 100.0)
         out.append((c.r, c.g, c.b))
     return out
+
+
+def nice_length(longest: float) -> float:
+    """The largest 1, 2 or 5 times a power of ten that is at most ``longest`` (> 0)."""
+    if not longest > 0 or not math.isfinite(longest):
+        raise ValueError(f"longest must be a finite length > 0, got {longest!r}")
+    k = math.floor(math.log10(longest))
+    for f in (5.0, 2.0, 1.0):
+        v = f * 10.0**k
+        if v <= longest * (1 + 1e-12):
+            return float(f"{v:.12g}")
+    return float(f"{10.0 ** (k - 1) * 5:.12g}")  # not reached: 1 * 10**k <= longest
 
 
 def tint(color: tuple[int, int, int], amount: float = _TINT) -> tuple[int, int, int]:
@@ -149,6 +166,9 @@ class Canvas:
         glyphs are ``robot``, ``start``, ``target``, ``trail``, ``contact``.
     start_color, target_color: the colours of start rings and target discs
         (also in the legend).
+    scale_bar: draw the scale bar (right of the legend band) and the wall
+        ticks; ``scale_length`` [units] is its length, ``scale_bar_rect``
+        its bar [px] (None without it).
 
     A header band above the workspace holds two lines of text; a free edge
     of ``pad`` pixels runs all round.  Both frame sides are even (video
@@ -163,6 +183,7 @@ class Canvas:
         legend: Sequence[tuple[str, str]] = (),
         start_color: tuple[int, int, int] = START,
         target_color: tuple[int, int, int] = TARGET,
+        scale_bar: bool = True,
     ):
         size = frame_size(problem) if size is None else int(size)
         self.problem = problem
@@ -177,6 +198,10 @@ class Canvas:
         self.pad = max(4, size // 80)  # free edge all round: room for a contact flash's frame
         self.header = self.pad + 2 * self.line_h + 2
         ws_w = int(round(problem.width * self.scale)) + 2 * border
+        self.scale_length = None
+        self.scale_bar_rect = None
+        if scale_bar:
+            self.scale_length = nice_length(max(24.0, ws_w / 5) / self.scale)
         self._legend_rows = self._layout_legend(list(legend), ws_w)
         self.footer = len(self._legend_rows) * self.line_h + self.pad + (2 if self._legend_rows else 0)
         h = int(round(problem.height * self.scale)) + 2 * border + self.header + self.footer
@@ -225,8 +250,30 @@ class Canvas:
                 self.disc(s, OBSTACLE, self.to_px(np.array(ob.center))[0], ob.radius * self.scale)
             else:
                 self.polygon(s, OBSTACLE, self.to_px(ob.vertices))
+        if self.scale_length is not None:
+            self._draw_ticks(s)
         self._draw_legend(s)
         return s
+
+    def _draw_ticks(self, s: pygame.Surface) -> None:
+        """Ticks every ``scale_length`` units, outward from the walls into the border."""
+        p, step = self.problem, self.scale_length
+        n = self.border - max(2, self.border // 2) // 2
+        if n < 2 or step * self.scale < 6:
+            return
+        w = max(1, self.border // 6)
+        x0, y0 = self.to_px(np.array([0.0, 0.0]))[0]
+        x1, y1 = self.to_px(np.array([p.width, p.height]))[0]
+        for k in range(1, int(math.floor(p.width / step + 1e-9)) + 1):
+            x = round(x0 + k * step * self.scale)  # whole pixels: pygame truncates
+            if x < x1 - 1:
+                pygame.draw.line(s, SCALE, (x, y0), (x, y0 + n), w)
+                pygame.draw.line(s, SCALE, (x, y1), (x, y1 - n), w)
+        for k in range(1, int(math.floor(p.height / step + 1e-9)) + 1):
+            y = round(y0 - k * step * self.scale)
+            if y > y1 + 1:
+                pygame.draw.line(s, SCALE, (x0, y), (x0 - n, y), w)
+                pygame.draw.line(s, SCALE, (x1, y), (x1 + n, y), w)
 
     # -- text -----------------------------------------------------------------
     def text_line(self, s, text: str, row: int, *, right: bool = False, color=TEXT, width: int | None = None):
@@ -259,7 +306,17 @@ class Canvas:
                 x = x0
             rows[-1].append((glyph, label, x))
             x += w + gap
+        if self.scale_length is not None:  # right-aligned on the last row, or a row of its own
+            label = self._scale_label()
+            w = int(round(self.scale_length * self.scale)) + 6 + self.font.size(label)[0]
+            if not rows or x + w > width - x0:
+                rows.append([])
+            rows[-1].append(("scale", label, max(x0, width - x0 - w)))
         return rows
+
+    def _scale_label(self) -> str:
+        v = self.scale_length
+        return f"{v:g} unit{'s' if v != 1 else ''} (tick spacing)"
 
     def _draw_legend(self, s: pygame.Surface) -> None:
         gw = self._glyph_w()
@@ -268,21 +325,37 @@ class Canvas:
             y = top + n * self.line_h
             cy = y + self.font.get_ascent() / 2 + 1
             for glyph, label, x in row:
+                if glyph == "scale":
+                    bar = int(round(self.scale_length * self.scale))
+                    th = max(3, self.line_h // 5)
+                    self.scale_bar_rect = pygame.Rect(x, int(round(cy - th / 2)), bar, th)
+                    s.fill(SCALE, self.scale_bar_rect)
+                    cap = int(self.font.get_ascent() * 0.35)
+                    for cx in (x, x + bar - th):
+                        s.fill(SCALE, pygame.Rect(cx, int(round(cy)) - cap, th, 2 * cap))
+                    s.blit(self.font.render(label, True, TEXT, BACKGROUND), (x + bar + 6, y))
+                    continue
                 self.draw_glyph(s, glyph, (x + gw / 2, cy), gw / 2)
                 s.blit(self.font.render(label, True, TEXT, BACKGROUND), (x + gw + 4, y))
 
     def draw_glyph(self, s, glyph: str, c, r: float) -> None:
         """The legend's picture of ``glyph`` centred at ``c`` with radius ``r`` [px]."""
-        if glyph == "robot":
-            self.disc(s, robot_colors(3)[2], c, r)
+        if glyph == "robot":  # robots have a colour each: a disc of three robots' colours
+            self.disc(s, OUTLINE, c, r)
+            for k, col in enumerate(robot_colors(3)):
+                a = [math.radians(90 + 120 * k + 10 * j) for j in range(13)]
+                pygame.draw.polygon(s, col, [(c[0], c[1])] + [(c[0] + (r - 1) * math.cos(t),
+                                                                 c[1] - (r - 1) * math.sin(t)) for t in a])
             self.ring(s, OUTLINE, c, r, 1)
         elif glyph == "start":
             self.ring(s, self.start_color, c, r, max(2, int(r / 3)))
         elif glyph == "target":
             self.disc(s, self.target_color, c, r)
-        elif glyph == "trail":
-            pygame.draw.aaline(s, tint(robot_colors(3)[2]), (c[0] - r, c[1] + r / 2), (c[0] + r, c[1] - r / 2),
-                               max(2, int(r / 2)))
+        elif glyph == "trail":  # pale lines in robots' colours
+            w = max(2, int(r / 3))
+            for k, col in enumerate(robot_colors(3)):
+                dy = (k - 1) * r * 0.6
+                pygame.draw.aaline(s, tint(col), (c[0] - r, c[1] + r / 3 + dy), (c[0] + r, c[1] - r / 3 + dy), w)
         elif glyph == "contact":
             self.ring(s, CONTACT, c, r, max(2, int(r / 3)))
             self.disc(s, CONTACT, c, r / 2)

@@ -68,14 +68,16 @@ class Frames(Sequence):
     """
 
     def __init__(self, problem, t, pos, contacts: _Contacts, params, clock: Timing, steps, title, legs=None,
-                 replans=(), failures=()):
+                 replans=(), failures=(), headings=None):
         self.problem = problem
         self.timing = clock
         self.speedup = clock.speedup
         self._t, self._pos, self._contacts, self._steps = t, pos, contacts, steps
         self._replans = tuple(replans)  # (trigger time, planned at, steps), in time order
         self._failures = tuple(failures)  # (time, robot), in time order
-        legend = [("robot", "robot"), ("start", "start (hollow)"), ("target", "target (filled)")]
+        # (T, m, 2) unit vectors of the robots' headings, or None (no heading to draw)
+        self._dir = None if headings is None else np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+        legend = [("robot", "robots (one colour each)"), ("start", "start (hollow)"), ("target", "target (filled)")]
         if params.trails:
             legend.append(("trail", "trail"))
         legend.append(("contact", "contact"))
@@ -156,8 +158,9 @@ class Frames(Sequence):
     def colours(self) -> np.ndarray:
         """The flat colours of the drawing ``(n, 3) uint8``: fixed ones first, then robots and trails."""
         fixed = [BACKGROUND, WALL, OBSTACLE, TEXT, CONTACT, OUTLINE, LABEL_ON_CONTACT, START_MARK, TARGET_MARK]
-        return np.array(list(dict.fromkeys(fixed + [c for pair in zip(self._colors, self._tints) for c in pair])),
-                        np.uint8)
+        swatch = robot_colors(3) + [tint(c) for c in robot_colors(3)]  # the legend's robot and trail glyphs
+        return np.array(list(dict.fromkeys(fixed + [c for pair in zip(self._colors, self._tints) for c in pair]
+                                           + swatch)), np.uint8)
 
     # -- one frame --------------------------------------------------------------
     def _draw(self, k: int) -> np.ndarray:
@@ -191,6 +194,8 @@ class Frames(Sequence):
             cv.disc(surf, self._colors[i], cur[i], r)
             cv.ring(surf, OUTLINE, cur[i], r, 1)
             self._label(surf, self._labels, i, cur[i])
+        if self._dir is not None:
+            self._draw_headings(surf, tc, cur, broken)
         if i1 > i0:
             self._draw_flash(surf, i0, i1, cur, hot)
 
@@ -214,6 +219,19 @@ class Frames(Sequence):
         if labels is not None:
             img = labels[i]
             surf.blit(img, (int(round(c[0] - img.get_width() / 2)), int(round(c[1] - img.get_height() / 2))))
+
+    def _draw_headings(self, surf, tc: float, cur: np.ndarray, broken) -> None:
+        """A line from each working robot's centre to its rim, along its heading."""
+        cv = self.canvas
+        ts = np.array([tc])
+        here = _interpolate(self._t, self._pos, ts)[0]
+        ahead = _interpolate(self._t, self._dir, ts)[0]
+        norm = np.maximum(np.hypot(ahead[:, 0], ahead[:, 1]), 1e-12)[:, None]
+        tips = cv.to_px(here + 0.95 * float(self.problem.radius) * ahead / norm)
+        w = max(1, int(round(cv.r / 5)))
+        for i in range(len(cur)):
+            if i not in broken:
+                pygame.draw.line(surf, OUTLINE, cur[i], tips[i], w)
 
     def _draw_trails(self, surf, now: float, cur: np.ndarray) -> None:
         if self._trail_px is None:

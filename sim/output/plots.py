@@ -9,13 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .verdict import _disturbance_list
+from .verdict import _disturbance_list, contact_events
 
 __all__ = ["EMBED_MAX_BYTES"]
 
 EMBED_MAX_BYTES = 24_000_000
 """A video larger than this [bytes] is linked, not embedded (the page stays a sane size)."""
-_ROBOT_LINES = 30  # up to this many robots, the tracking plot has one line per robot
+_ROBOT_LINES = 10  # up to this many robots, the tracking plot has one line per robot
+_BAND = (10, 90)  # beyond that: the median, this quantile band [%] and the worst robot
 _DPI = 100
 
 
@@ -82,7 +83,8 @@ def _events(ax, report: dict) -> None:
         return [x.get("time") for x in sim.get(key) or [] if isinstance(x, dict) and _finite(x.get("time"))]
 
     axis = ax.get_xaxis_transform()  # x in data, y in axes fractions
-    contacts = times("contact_list")
+    contacts = [e.get("start", e.get("time")) for e in contact_events(sim)[1]]
+    contacts = [x for x in contacts if _finite(x)]
     if contacts:
         ax.plot(contacts, [0.0] * len(contacts), "|", transform=axis, color="#e61414", ms=16, mew=1.6,
                 clip_on=False, label="contact")
@@ -121,31 +123,49 @@ def _plot_gap(report: dict, t: np.ndarray, gap: np.ndarray) -> dict:
     return _plot_dict("plot-clearance", "Smallest gap over time", fig)
 
 
+def worst_robot(err: np.ndarray) -> int:
+    """The robot with the largest tracking error at any time (NaN, a failed robot, ignored); -1 if none."""
+    peak = np.where(np.isfinite(err), err, -np.inf).max(axis=0, initial=-np.inf)
+    return int(np.argmax(peak)) if np.isfinite(peak).any() else -1
+
+
 def _plot_tracking(report: dict, t: np.ndarray, err: np.ndarray) -> dict:
+    return _plot_dict("plot-tracking", "Tracking error per robot over time", _tracking_figure(report, t, err))
+
+
+def _tracking_figure(report: dict, t: np.ndarray, err: np.ndarray):
+    """One line per robot up to 10 robots; beyond, the median, the 10-90 % band and the worst robot."""
+    import warnings
+
     from .canvas import robot_colors
 
     fig, ax = _figure()
     m = err.shape[1]
     if m <= _ROBOT_LINES:
         for i, c in enumerate(robot_colors(m)):
-            ax.plot(t, err[:, i], color=np.array(c) / 255.0, lw=1.1, label=f"robot {i}" if m <= 12 else None)
+            ax.plot(t, err[:, i], color=np.array(c) / 255.0, lw=1.1, label=f"robot {i}")
     else:
-        ax.fill_between(t, err.min(axis=1), err.max(axis=1), color="#9fb3e0", alpha=0.5, lw=0,
-                        label=f"all {m} robots (min to max)")
-        ax.plot(t, np.median(err, axis=1), color="#2857c8", lw=1.2, label="median")
-        worst = int(np.argmax(err.max(axis=0)))
-        ax.plot(t, err[:, worst], color="0.15", lw=1.0, label=f"robot {worst} (largest)")
+        with warnings.catch_warnings():  # a sample where every robot failed is all NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            lo, mid, hi = np.nanpercentile(err, [_BAND[0], 50, _BAND[1]], axis=1)
+        ax.fill_between(t, lo, hi, color="#9fb3e0", alpha=0.6, lw=0,
+                        label=f"{_BAND[0]}-{_BAND[1]} % of the {m} robots")
+        ax.plot(t, mid, color="#2857c8", lw=1.3, label="median robot")
+        worst = worst_robot(err)
+        if worst >= 0:
+            ax.plot(t, err[:, worst], color="#b4460f", lw=1.0, label=f"robot {worst} (the worst)")
     _events(ax, report)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("distance from the plan [units]")
-    ax.set_title("Tracking error per robot")
+    ax.set_title("Tracking error per robot" if m <= _ROBOT_LINES else
+                 f"Tracking error of {m} robots: median, {_BAND[0]}-{_BAND[1]} % band, worst robot")
     ax.set_ylim(bottom=0.0)
     ax.grid(alpha=0.3)
     _, labels = ax.get_legend_handles_labels()
     if labels:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False,
                   ncols=1 if len(labels) <= 10 else 2)
-    return _plot_dict("plot-tracking", "Tracking error per robot over time", fig)
+    return fig
 
 
 def _plot_dict(ident: str, title: str, fig) -> dict:

@@ -20,6 +20,7 @@ import numpy as np
 
 from planner.problem import Circle, Problem
 
+from ..execute.events import SAME_CONTACT_SECONDS
 from ..scenario.params import MAX_RENDER_SIZE, RenderParams
 from ..words import plural
 from .canvas import (
@@ -50,7 +51,7 @@ __all__ = [
     "robot_colors",
 ]
 
-_SAME_CONTACT_SECONDS = 0.1  # records of one pair this close in time are one contact [sim s]
+_SAME_CONTACT_SECONDS = SAME_CONTACT_SECONDS  # records of one pair this close in time are one contact [sim s]
 
 
 def draw_scenario(problem: Problem, size: int | None = None, title: str = "") -> np.ndarray:
@@ -93,6 +94,7 @@ def render_frames(
     targets: Sequence[tuple[float, np.ndarray]] | None = None,
     replans: Sequence = (),
     failures: Sequence[tuple[int, float]] = (),
+    headings: np.ndarray | None = None,
 ) -> Frames:
     """The video frames of a recorded run, as a :class:`Frames` sequence.
 
@@ -127,6 +129,10 @@ def render_frames(
     failures: ``(robot, time [s])`` of robots that stopped actuating; from
         that time on the robot is drawn grey with a dark cross (and the
         legend names it).
+
+    headings: ``(T, m)`` robot headings [rad, from +x, counter-clockwise]
+        of a drive that has them (:mod:`sim.execute.drive`); each robot is
+        drawn with a line from its centre to its rim along its heading.
 
     The arguments are checked at once; frames are drawn when asked for.
     """
@@ -167,7 +173,12 @@ def render_frames(
         raise ValueError(f"failures must name robots in [0, {problem.m})")
     clock = timing(t[-1] - t[0], params)
     rows = _contact_table(problem, contacts, t, pos)
-    return Frames(problem, t, pos, rows, params, clock, steps, str(title), legs, marks, broken)
+    heads = None
+    if headings is not None:
+        heads = np.asarray(headings, float)
+        if heads.shape != (len(t), problem.m) or not np.all(np.isfinite(heads)):
+            raise ValueError(f"headings must be a finite (T, m) = ({len(t)}, {problem.m}) array, got {heads.shape}")
+    return Frames(problem, t, pos, rows, params, clock, steps, str(title), legs, marks, broken, headings=heads)
 
 
 def _contact_table(problem: Problem, contacts: Sequence, t: np.ndarray, pos: np.ndarray) -> _Contacts:

@@ -10,7 +10,10 @@ plots and the video are embedded as data URIs, so the file opens offline,
 alone.  It holds, top to bottom: the verdict in one line; the scenario
 picture and the video; the smallest gap over time with the margin drawn,
 and each robot's tracking error over time; the plan's numbers against the
-lower bounds; the physics numbers; the contacts; disturbances and replans
+lower bounds; the settings (every ``--set`` value and every parameter not at
+its default, :mod:`sim.output.settings`); the physics numbers; the contact
+events with the witnesses that saw each (:mod:`sim.execute.events`);
+disturbances and replans
 where there are any; the raw report.
 
 Keys the page reads and does not need (it says what is missing, or leaves
@@ -35,7 +38,8 @@ import numpy as np
 from ..words import reached_phrase
 from .media import atomic_path
 from .plots import EMBED_MAX_BYTES, _plots, _png_uri, _video
-from .verdict import _count, _disturbance_list, _num, _parked, verdict
+from .settings import settings_rows
+from .verdict import _count, _disturbance_list, _num, _parked, contact_events, verdict
 
 __all__ = ["EMBED_MAX_BYTES", "run_page", "verdict", "write_run_page"]
 
@@ -74,7 +78,8 @@ def write_run_page(
         "video_rows": _video_rows(report.get("video")),
         "meta": _meta(report),
         "contacts": _contact_rows(sim),
-        "contacts_total": int(sim.get("contacts") or 0),
+        "contacts_total": contact_events(sim)[0],
+        "settings_rows": settings_rows(report),
         "shown_contacts": _SHOWN_CONTACTS,
         "disturbances": _rows(_disturbance_list(sim), ("time", "robot", "kind", "impulse")),
         "replans": _rows(sim.get("replans"), ("time", "reason", "planning_time_s", "robots", "found", "steps")),
@@ -161,8 +166,11 @@ def _sim_rows(report: dict) -> list[tuple[str, str, str]]:
     if not s:
         return []
     m = report.get("robots")
-    rows = [("contacts", _num(s.get("contacts")),
-             f"pymunk {_num(s.get('contacts_pymunk'))}, monitor {_num(s.get('contacts_monitor'))}")]
+    n, events = contact_events(s)
+    both = sum(len(e.get("witnesses") or ()) > 1 for e in events)
+    seen = f"{both} seen by both witnesses; " if events else ""
+    sightings = f"sightings: pymunk {_num(s.get('contacts_pymunk'))}, monitor {_num(s.get('contacts_monitor'))}"
+    rows = [("contacts", _num(n), seen + sightings)]
     pair = s.get("min_clearance_pair") or []
     what = s.get("min_clearance_kind") or ""
     if what and len(pair) == 2:
@@ -180,6 +188,12 @@ def _sim_rows(report: dict) -> list[tuple[str, str, str]]:
     rows.append((label, reached, f"worst final distance {_num(s.get('final_error'))}"))
     rows.append(("simulated", f"{_num(s.get('sim_time_s'))} s",
                  f"in {_num(s.get('wall_time_s'), 3)} s wall-clock time"))
+    if "phase_margin_deg" in s:
+        pm = s.get("phase_margin_deg")
+        note = "the controller with its delays (latency, half the hold)"
+        if isinstance(pm, (int, float)) and not isinstance(pm, bool) and pm <= 0:
+            note += ": UNSTABLE"
+        rows.append(("phase margin", "n/a" if pm is None else f"{_num(pm, 3)}°", note))
     return rows
 
 
@@ -220,22 +234,18 @@ def _rows(items, keys: tuple[str, ...]) -> list[dict]:
 
 
 def _contact_rows(sim: dict) -> list[dict]:
+    """The contact events (grouped from an old report's sightings), the first marked."""
     rows = []
-    first = sim.get("first_contact")
-    keys = ("time", "kind", "a", "b", "depth", "witness")
-    for n, c in enumerate(sim.get("contact_list") or []):
-        if not isinstance(c, dict):
-            continue
-        row = {k: c.get(k) for k in keys}
-        row["first"] = (first == c) if first else n == 0
-        row["witness"] = _witness_text(c.get("witness"))
-        rows.append(row)
+    for n, e in enumerate(contact_events(sim)[1]):
+        rows.append({"time": e.get("start", e.get("time")), "end": e.get("end"), "kind": e.get("kind"),
+                     "a": e.get("a"), "b": e.get("b"), "depth": e.get("depth"), "first": n == 0,
+                     "witness": _witness_text(e.get("witnesses", e.get("witness")))})
     return rows
 
 
 def _witness_text(w) -> str:
-    if isinstance(w, (list, tuple)) and len(w) == 2:
-        return f"({_num(w[0])}, {_num(w[1])})"
+    if isinstance(w, (list, tuple)):
+        return " and ".join(str(x) for x in w)
     return "" if w is None else str(w)
 
 

@@ -6,9 +6,11 @@ import math
 
 import numpy as np
 
+from ..execute.drive_timing import timing_notes
+from ..execute.events import group_events
 from ..words import reached_phrase, run_notes
 
-__all__ = ["verdict"]
+__all__ = ["contact_events", "verdict"]
 
 
 # ----------------------------------------------------------------------------
@@ -28,9 +30,12 @@ def verdict(report: dict) -> tuple[bool, str]:
     reasons = []
     if plan.get("valid") is False:
         reasons.append(f"the plan comes closer than the margin (min clearance {_num(plan.get('min_clearance'))})")
-    n = sim.get("contacts") or 0
+    n, events = contact_events(sim)
     if n:
-        first = sim.get("first_contact") or (sim.get("contact_list") or [None])[0]
+        if "contact_events" in sim:
+            first = events[0] if events else None
+        else:  # an old report: its first sighting
+            first = sim.get("first_contact") or (events or [None])[0]
         where = f", the first {_describe_contact(first)}" if first else ""
         reasons.append(f"{n} contact{'s' if n != 1 else ''} in the physics run{where}")
     if sim and sim.get("stopped"):
@@ -54,6 +59,32 @@ def verdict(report: dict) -> tuple[bool, str]:
                   + "".join(f"; {n}" for n in notes))
 
 
+def contact_events(sim: dict) -> tuple[int, list[dict]]:
+    """How many contact events a physics report counts, and those it lists (dicts, time order).
+
+    A report lists them under ``contact_events`` and counts them under
+    ``contacts``.  An older one lists only the sightings (``contact_list``,
+    every witness's record), which are grouped here
+    (:func:`sim.execute.events.group_events`) when the list is complete;
+    otherwise its own count is taken.
+    """
+    listed = sim.get("contact_events")
+    if isinstance(listed, list):
+        events = [e for e in listed if isinstance(e, dict)]
+        n = sim.get("contacts")
+        return (n if isinstance(n, int) and not isinstance(n, bool) else len(events)), events
+    sightings = sim.get("contact_list")
+    if isinstance(sightings, list) and sightings and not sim.get("contact_list_truncated"):
+        try:
+            events = [e.to_dict() for e in group_events([c for c in sightings if isinstance(c, dict)])]
+        except ValueError:
+            events = []
+        if events:
+            return len(events), events
+    n = sim.get("contacts")
+    return (n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else 0), []
+
+
 def _parked(sim: dict) -> int:
     """Working robots parked by the last replan (failed robots block their targets)."""
     replans = sim.get("replans") or []
@@ -65,7 +96,8 @@ def _parked(sim: dict) -> int:
 def _physics_notes(sim: dict, m) -> list[str]:
     """What a realistic run adds to the verdict: failed robots, empty targets, replans, an unstable loop."""
     return run_notes(sim.get("failed"), _parked(sim), sim.get("targets_filled"), m,
-                     len(sim.get("replans") or []), sim.get("phase_margin_deg"), list_max=10)
+                     len(sim.get("replans") or []), sim.get("phase_margin_deg"), list_max=10) + \
+        timing_notes(sim.get("drive_timing"))
 
 
 def _describe_contact(c: dict) -> str:
@@ -76,7 +108,10 @@ def _describe_contact(c: dict) -> str:
         who = f"robot {a} and the wall"
     else:
         who = f"robot {a} and obstacle {b}"
-    return f"{who} at t = {_num(c.get('time'), 3)} s"
+    time = c.get("start", c.get("time"))
+    seen = c.get("witnesses")
+    seen = f" (seen by {' and '.join(map(str, seen))})" if isinstance(seen, list) and seen else ""
+    return f"{who} at t = {_num(time, 3)} s{seen}"
 
 
 # ----------------------------------------------------------------------------

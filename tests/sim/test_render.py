@@ -9,20 +9,20 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from planner.problem import Circle, Polygon, Problem
 from sim.output.canvas import BACKGROUND, MAX_SIZE, MIN_SIZE, TEXT, fit_text, frame_size, label_font
-from sim.scenario.params import RenderParams
 from sim.output.playback import MAX_VIDEO_SECONDS
-from sim.output.render import _interpolate  # noqa: I001
 from sim.output.render import (
     CONTACT,
     START_MARK,
     TARGET_MARK,
     Canvas,
+    _interpolate,  # noqa: I001
     draw_scenario,
     frame_times,
     playback_speedup,
     render_frames,
     robot_colors,
 )
+from sim.scenario.params import RenderParams
 
 
 @dataclass(frozen=True)

@@ -11,10 +11,9 @@ import pytest
 
 from planner import Plan
 from planner.problem import Problem
-from sim.output import plots
-from sim.output import report as page
-from sim.output.report import run_page, verdict, write_run_page
 from sim.execute.series import run_series
+from sim.output import plots
+from sim.output.report import run_page, verdict, write_run_page
 
 ROOT = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).parent / "swarmform")
