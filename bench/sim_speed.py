@@ -19,6 +19,11 @@ friction 0.2, random pushes of 0.5 N s at 0.05 per robot per second and
 robot 0 failing halfway; gains lowered to kp = 50, kd = 14 so that the
 loop stays stable with the latency).  Recovery stays off: replanning
 measures the planner, not the simulator.
+
+Then the drive models (:mod:`sim.execute.drive`) run, with their default
+settings and nothing else realistic, at ``--drive-robots`` (100 and 1000):
+``differential`` (wheels, no lateral slip) and ``velocity`` (first-order
+velocity tracking); both use the realistic loop.
 """
 
 from __future__ import annotations
@@ -36,7 +41,7 @@ from planner.plan import Plan
 from planner.problem import Circle, Polygon, Problem
 from planner.validate import check_plan
 from sim.execute.physics import execute
-from sim.scenario.params import Failure, Noise, Pushes, SimParams
+from sim.scenario.params import DriveParams, Failure, Noise, Pushes, SimParams
 
 __all__ = ["DISTURBED", "cell_problem", "disturbed_params", "main"]
 
@@ -109,6 +114,11 @@ def _machine() -> str:
     )
 
 
+def _factor(x: float) -> str:
+    """A realtime factor: whole numbers from 10 on, two digits below."""
+    return f"{x:.0f}x" if x >= 10 else f"{x:.2g}x"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.sim_speed", description=__doc__.split("\n")[0])
     ap.add_argument("--robots", type=int, nargs="+", default=[11, 50, 100])
@@ -116,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cells", type=float, nargs="+", default=[4.0, 1.6],
                     help="cell sides: 4 is sparse, 1.6 packs robots 0.1 apart")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--drive-robots", type=int, nargs="*", default=[100, 1000],
+                    help="robot counts of the differential and velocity drive rows (none: skip them)")
     args = ap.parse_args(argv)
 
     params = SimParams()
@@ -130,21 +142,27 @@ def main(argv: list[str] | None = None) -> int:
         "| per CPU second | contacts | min clearance | max tracking error | space.step share |"
     )
     print("| ---: | ---: | :--- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
-    for cell in args.cells:
-        for m in args.robots:
-            problem, plan = cell_problem(m, args.steps, rng, cell)
-            for label, run_params in (("ideal", params), ("disturbed", disturbed_params(plan.makespan))):
-                cpu0 = time.process_time()
-                report = execute(problem, plan, run_params, np.random.default_rng(args.seed))
-                cpu = time.process_time() - cpu0
-                print(
-                    f"| {m} | {cell:g} | {label} | {report.sim_time_s:.1f} | {report.wall_time_s:.2f} | "
-                    f"{cpu:.2f} | {report.realtime_factor:.0f}x | {report.sim_time_s / max(cpu, 1e-9):.0f}x | "
-                    f"{len(report.contacts)} | "
-                    f"{report.min_clearance:.3f} | {report.max_tracking_error:.1e} | "
-                    f"{report.step_time_s / report.wall_time_s:.0%} |",
-                    flush=True,
-                )
+    runs = [(m, cell, None) for cell in args.cells for m in args.robots]
+    runs += [(m, cell, "drives") for cell in args.cells for m in args.drive_robots]
+    for m, cell, kind in runs:
+        problem, plan = cell_problem(m, args.steps, rng, cell)
+        if kind is None:
+            labelled = (("ideal", params), ("disturbed", disturbed_params(plan.makespan)))
+        else:
+            labelled = tuple((model, SimParams(drive=DriveParams(model=model)))
+                             for model in ("differential", "velocity"))
+        for label, run_params in labelled:
+            cpu0 = time.process_time()
+            report = execute(problem, plan, run_params, np.random.default_rng(args.seed))
+            cpu = time.process_time() - cpu0
+            print(
+                f"| {m} | {cell:g} | {label} | {report.sim_time_s:.1f} | {report.wall_time_s:.2f} | "
+                f"{cpu:.2f} | {_factor(report.realtime_factor)} | {report.sim_time_s / max(cpu, 1e-9):.0f}x | "
+                f"{len(report.contacts)} | "
+                f"{report.min_clearance:.3f} | {report.max_tracking_error:.1e} | "
+                f"{report.step_time_s / report.wall_time_s:.0%} |",
+                flush=True,
+            )
     return 0
 
 

@@ -27,18 +27,21 @@ from planner.bounds import lower_bounds
 from planner.inputfile import echo_path
 from planner.plan import read_plan_file
 
-from .execute.budget import check_physics_budget, check_validator_budget
 from .errors import InputError
-from .execute.physics import SimReport, execute
+from .execute.budget import check_physics_budget, check_validator_budget
 from .execute.legs import plan_legs
-from .output.media import atomic_path, has_mp4, write_video
+from .execute.physics import SimReport, execute
+from .execute.series import write_series
 from .output.files import OutputSet, check_out_dir
-from .progress import ProgressBar
+from .output.media import atomic_path, has_mp4, write_video
 from .output.playback import MAX_VIDEO_SECONDS
 from .output.render import render_frames
 from .output.report import run_page
-from .scenario import Scenario, build_legs, read_scenario
-from .execute.series import write_series
+from .output.settings import non_defaults
+from .progress import ProgressBar
+from .scenario.build import build_legs
+from .scenario.model import Scenario
+from .scenario.reader import read_scenario
 from .words import plural
 
 __all__ = ["InputError", "RunResult", "plan_summary", "run_scenario", "sim_summary"]
@@ -112,7 +115,7 @@ def run_scenario(
         loaded, recorded = read_plan_file(plan_path)
         seed = recorded.get("seed") if seed is None else seed
     seed = scenario.seed if seed is None else seed
-    rng = np.random.default_rng(seed)
+    rng = scenario.generator(seed)
     problem, targets = build_legs(scenario, rng)
     leg_times = None
     name = scenario.name
@@ -127,6 +130,7 @@ def run_scenario(
                     "margin": problem.margin, "scenario_file": str(path)}
     if overrides:
         report["settings"] = dict(overrides)  # the --set values the scenario was read with
+    report["non_defaults"] = non_defaults(scenario)  # parameters that differ from their defaults
     json_name, page_name, series_name = f"{name}.json", f"{name}.html", f"{name}-series.npz"
     with outs:
         if loaded is not None:
@@ -175,7 +179,7 @@ def run_scenario(
         report["sim"] = sim_summary(sim)
         write_series(outs.path(series_name), sim)
         report["sim"]["series_file"] = series_name
-        say(f"  physics: {plural(len(sim.contacts), 'contact')}, min clearance {sim.min_clearance:.4f}, "
+        say(f"  physics: {plural(len(sim.events), 'contact')}, min clearance {sim.min_clearance:.4f}, "
             f"tracking error {sim.max_tracking_error:.2g}, reached {'yes' if sim.reached else 'no'}, "
             f"{sim.sim_time_s:.1f} s simulated in {sim.wall_time_s:.1f} s")
         say(f"  physics verdict: {sim.verdict}")
@@ -187,7 +191,8 @@ def run_scenario(
             legs = None if leg_times is None or len(targets) < 2 else list(zip(leg_times[:-1], targets))
             frames = render_frames(problem, sim.times, sim.positions, sim.contacts, scenario.render,
                                    step_times=result.times, title=name, targets=legs, replans=sim.replans,
-                                   failures=[(d.robot, d.time) for d in sim.disturbances if d.kind == "failure"])
+                                   failures=[(d.robot, d.time) for d in sim.disturbances if d.kind == "failure"],
+                                   headings=sim.headings)
             report["video"] = frames.timing.to_dict()
             if frames.timing.raised:
                 say(f"  video: {frames.speedup:g}x speed, raised to keep it within {MAX_VIDEO_SECONDS:g} s")

@@ -2,9 +2,10 @@
 
 Modules: ``physics`` (:func:`execute` and :class:`SimReport`), ``world`` (bodies and
 walls), ``control`` (the PD law and the reference), ``realism`` (noise, delay,
-pushes, failures), ``contacts`` (the witnesses), ``recovery`` (replanning online),
-``legs`` (chained targets), ``series`` (the recorded curves) and ``budget`` (what a
-run may cost).  It imports the scenario room, never the output room.
+pushes, failures), ``estimate`` (the state filter), ``contacts`` (the witnesses), ``recovery`` (replanning online),
+``drive`` and ``drive_timing`` (differential and velocity robots), ``legs`` (chained
+targets), ``series`` (the recorded curves) and ``budget`` (what a run may cost).  It
+imports the scenario room, never the output room.
 
 ``sim.execute`` is both this room and, called, :func:`sim.execute.physics.execute`,
 so that ``from sim import execute; execute(problem, plan, SimParams())`` keeps working.

@@ -30,8 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.geometry import point_segment_distance, points_in_polygon
-
+from .kernels import circle_clearance, polygon_signed_distance, wall_clearance
 from .world import OBSTACLE, ROBOT, WALL
 
 __all__ = [
@@ -59,6 +58,8 @@ class Contact:
         (``robot-obstacle``) or ``-1`` (``robot-wall``).
     depth: the deepest overlap during the episode, ``>= 0`` [workspace units].
     witness: ``pymunk`` or ``monitor``.
+    swept: seen only between two samples, by the monitor's swept check
+        (``time`` is then the closest approach and ``depth`` the overlap there).
     """
 
     time: float
@@ -67,9 +68,10 @@ class Contact:
     b: int
     depth: float
     witness: str
+    swept: bool = False
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "time": self.time,
             "kind": self.kind,
             "a": self.a,
@@ -77,6 +79,9 @@ class Contact:
             "depth": self.depth,
             "witness": self.witness,
         }
+        if self.swept:
+            d["swept"] = True
+        return d
 
     def describe(self) -> str:
         if self.kind == ROBOT_ROBOT:
@@ -85,11 +90,13 @@ class Contact:
             who = f"robot {self.a} and the wall"
         else:
             who = f"robot {self.a} and obstacle {self.b}"
-        return f"{who} touch at t = {self.time:.3f} s, depth {self.depth:.3g} ({self.witness})"
+        between = ", between samples" if self.swept else ""
+        return f"{who} touch at t = {self.time:.3f} s, depth {self.depth:.3g} ({self.witness}{between})"
 
 
 def _contacts(records: list[list], witness: str) -> list[Contact]:
-    return [Contact(float(t), k, int(a), int(b), float(d), witness) for t, k, a, b, d in records]
+    """Records ``[time, kind, a, b, depth]``, with ``True`` appended for a swept one."""
+    return [Contact(float(r[0]), r[1], int(r[2]), int(r[3]), float(r[4]), witness, len(r) > 5) for r in records]
 
 
 # -- pymunk's witness -------------------------------------------------------------
@@ -108,6 +115,7 @@ class PymunkWitness:
         self._robot_of = world.robot_of
         self._obstacle_of = world.obstacle_of
         self._records: list[list] = []  # [time, kind, a, b, depth]
+        self.speed_warnings: list[str] = []  # physics steps in which a body could tunnel (SpeedGuard)
         self._open: dict[tuple, list] = {}  # key -> [arbiter count, record]
         space = world.space
         for other in (ROBOT, OBSTACLE, WALL):
@@ -175,7 +183,8 @@ def static_clearances(env, points: np.ndarray, n_obstacles: int, below: float | 
     set (a polygon's edges, a circle's rim, the nearest wall line),
     negative when the centre is inside it; subtract the radius for the gap
     of a disc.  Where a centre is outside every obstacle, the row minimum
-    equals :meth:`planner.geometry.Environment.point_clearance`.
+    equals :meth:`planner.geometry.Environment.point_clearance` (computed
+    here with the witnesses' own kernels, :mod:`sim.execute.kernels`).
 
     With ``below`` given (a number, or one per point), a polygon entry is
     exact only where it is less than ``below``; elsewhere it may be any
@@ -185,10 +194,9 @@ def static_clearances(env, points: np.ndarray, n_obstacles: int, below: float | 
     """
     pts = np.asarray(points, float).reshape(-1, 2)
     out = np.empty((len(pts), n_obstacles + 1))
-    out[:, -1] = env.wall_clearance(pts)
+    out[:, -1] = wall_clearance(pts, env.width, env.height)
     if len(env.circle_radii):
-        d = np.sqrt(((pts[:, None, :] - env.circle_centers[None]) ** 2).sum(-1))
-        out[:, list(env.circle_ids)] = d - env.circle_radii[None]
+        out[:, list(env.circle_ids)] = circle_clearance(pts, env.circle_centers, env.circle_radii)
     for i, poly in enumerate(env.polygons):
         col = env.polygon_ids[i]
         if below is None:
@@ -201,9 +209,9 @@ def static_clearances(env, points: np.ndarray, n_obstacles: int, below: float | 
             out[:, col] = bound
             if len(sel) == 0:
                 continue
-        p = pts[sel]
-        d = point_segment_distance(p[:, None, :], poly[None], np.roll(poly, -1, axis=0)[None]).min(axis=1)
-        out[sel, col] = np.where(points_in_polygon(p, poly), -d, d)
+        out[sel, col] = polygon_signed_distance(pts[sel], poly)
     return out
 
+
+# -- speed: what both witnesses need between samples ---------------------------------------
 

@@ -1,4 +1,8 @@
-"""The geometric contact witness: the exact smallest gap of every sample, robot pairs through Verlet lists."""
+"""The geometric contact witness: the exact smallest gap of every sample, robot pairs through Verlet lists.
+
+Between samples it sweeps (:mod:`sim.execute.swept`): a contact that begins
+and ends inside one step, so that both samples are clear, is still seen.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +11,7 @@ import math
 import numpy as np
 
 from .contacts import ROBOT_OBSTACLE, ROBOT_ROBOT, ROBOT_WALL, Contact, _contacts, static_clearances
+from .kernels import circle_clearance, wall_clearance
 
 __all__ = ["SERIES_CAP", "GapMonitor"]
 
@@ -19,6 +24,14 @@ __all__ = ["SERIES_CAP", "GapMonitor"]
 _VERLET_SPAN = 16
 _PAIRS_PER_ROBOT = 40
 
+SWEEP_FRACTION = 0.1
+"""Between two samples in which some robot moves more than ``SWEEP_FRACTION``
+radii, :meth:`GapMonitor.observe` sweeps the straight moves.  Slower moves
+are not swept: two discs (or a disc and an obstacle) clear at both ends of a
+move of relative length ``D`` overlap in between by at most ``D^2 / (16 r)``
+(``r / 400`` at this fraction), while a straight chord is only an
+approximation of the true, curved path."""
+
 SERIES_CAP = 2.0
 """Per-sample smallest gaps above ``SERIES_CAP * radius`` (one robot diameter) are
 recorded as that cap: nothing that far apart is near a contact, and the cap
@@ -30,8 +43,13 @@ class GapMonitor:
     Feed it samples in time order with :meth:`observe`.  ``min_gap`` is the
     smallest gap seen [units], ``min_time`` its time [s], ``min_kind`` and
     ``min_pair`` what attained it (robot pair; or robot and obstacle index,
-    ``-1`` for the wall).
+    ``-1`` for the wall).  These are of the samples; contacts found
+    between samples (:meth:`sweep`) are contacts with their own depth, and
+    the least gap among them is ``swept_min_gap`` at ``swept_min_time``.
     """
+
+    swept = True
+    """Sweep between samples (switch off only to show what the sampled check alone misses)."""
 
     def __init__(self, problem):
         self.radius = float(problem.radius)
@@ -45,6 +63,10 @@ class GapMonitor:
         self._records: list[list] = []
         self._active: dict[tuple, list] = {}
         self._series: list[np.ndarray] = []
+        self.swept_min_gap = float("inf")
+        self.swept_min_time = float("nan")
+        self._last: tuple[float, np.ndarray] | None = None  # the last sample observed
+        self._covered: set[float] = set()  # starts of steps swept along their substeps
 
     def contacts(self) -> list[Contact]:
         return _contacts(self._records, "monitor")
@@ -151,10 +173,9 @@ class GapMonitor:
         # overlap: below what the walls and circles already give (never
         # below the radius, i.e. a zero gap).
         env = self.env
-        cheap_pt = env.wall_clearance(pts)
+        cheap_pt = wall_clearance(pts, env.width, env.height)
         if len(env.circle_radii):
-            d = np.sqrt(((pts[:, None, :] - env.circle_centers[None]) ** 2).sum(-1))
-            cheap_pt = np.minimum(cheap_pt, (d - env.circle_radii[None]).min(axis=1))
+            cheap_pt = np.minimum(cheap_pt, circle_clearance(pts, env.circle_centers, env.circle_radii).min(axis=1))
         cheap_s = cheap_pt.reshape(c, m).min(axis=1)
         cheap = float(cheap_s.min())
         below_s = np.maximum(max(cheap, r), np.minimum(cheap_s, self.cap + r)) + 1e-9
@@ -184,6 +205,9 @@ class GapMonitor:
 
         if events or self._active:
             self._episodes(times, events)
+        if self.swept:
+            self._sweep_samples(times, pos)
+        self._last = (float(times[-1]), pos[-1].copy())
 
     def _set_min(self, gap: float, time: float, kind: str, pair: tuple[int, int]) -> None:
         self.min_gap = float(gap)
@@ -207,3 +231,75 @@ class GapMonitor:
                     self._active[key] = record
                 else:
                     record[4] = max(record[4], -gap)
+
+    # -- between samples ----------------------------------------------------------------
+    def _sweep_samples(self, times: np.ndarray, pos: np.ndarray) -> None:
+        """Sweep the straight moves between consecutive observed samples where some robot moves fast."""
+        if self._last is not None:
+            times = np.concatenate([[self._last[0]], times])
+            pos = np.concatenate([self._last[1][None], pos])
+        if len(pos) < 2:
+            return
+        move = pos[1:] - pos[:-1]
+        fast = np.einsum("kmx,kmx->km", move, move).max(axis=1) > (SWEEP_FRACTION * self.radius) ** 2
+        if self._covered:
+            fast &= ~np.isin(times[:-1], list(self._covered))
+        k = np.flatnonzero(fast)
+        if len(k):
+            self._sweep_moves(times[k], times[k + 1], pos[k], pos[k + 1], pos[k], pos[k + 1], k)
+
+    def sweep(self, times: np.ndarray, positions: np.ndarray) -> None:
+        """Sweep the path ``positions`` ``(S + 1, m, 2)`` at ``times`` ``(S + 1,)`` between two samples.
+
+        The first and last rows are the samples at the ends of one step
+        (given to :meth:`observe` too); the rows between are positions
+        within the step (physics substeps).  The path is straight between
+        rows.  Each pair (two robots, or a robot and an obstacle) whose
+        least gap along the path is below 0 while it is clear at both ends
+        opens one contact (``witness`` ``monitor``, ``swept`` true), timed
+        at the closest approach, with that gap's depth.
+        """
+        times = np.asarray(times, float).reshape(-1)
+        pos = np.asarray(positions, float)
+        if len(pos) < 2:
+            return
+        self._covered.add(float(times[0]))
+        if self.swept:
+            self._sweep_path(times, pos)
+
+    def _sweep_path(self, times: np.ndarray, pos: np.ndarray) -> None:
+        n = len(pos) - 1
+        first, last = np.broadcast_to(pos[0], pos[1:].shape), np.broadcast_to(pos[-1], pos[1:].shape)
+        self._sweep_moves(times[:-1], times[1:], pos[:-1], pos[1:], first, last, np.zeros(n, int))
+
+    def _sweep_moves(self, t0, t1, p0, p1, end0, end1, step) -> None:
+        """Sweep the straight moves ``p0 -> p1`` ``(K, m, 2)`` over ``[t0, t1]`` ``(K,)``.
+
+        Move ``k`` belongs to the step ``step[k]`` between the samples
+        ``end0[k]`` and ``end1[k]``; each pair touching within a step whose
+        samples are both clear opens one contact, at its closest approach.
+        """
+        from .swept import swept_hits
+
+        hits = swept_hits(self.radius, self.env, p0, p1)
+        if not hits:
+            return
+        best: dict[tuple, tuple[float, float, int]] = {}
+        for k, kind, a, b, gap, s in hits:
+            key = (int(step[k]), kind, a, b)
+            if key not in best or gap < best[key][0]:
+                best[key] = (gap, float(t0[k] + s * (t1[k] - t0[k])), k)
+        for (_, kind, a, b), (gap, t, k) in sorted(best.items(), key=lambda kv: kv[1][1]):
+            if self._end_gap(np.stack([end0[k], end1[k]]), kind, a, b) < 0.0:
+                continue  # touching at a sample: the sampled check has it
+            self._records.append([t, kind, a, b, -gap, True])
+            if gap < self.swept_min_gap:
+                self.swept_min_gap, self.swept_min_time = gap, t
+
+    def _end_gap(self, ends: np.ndarray, kind: str, a: int, b: int) -> float:
+        """The smaller gap of the pair at the two samples ``ends`` ``(2, m, 2)``."""
+        if kind == ROBOT_ROBOT:
+            d = ends[:, a] - ends[:, b]
+            return float(np.sqrt(np.einsum("kx,kx->k", d, d)).min()) - 2.0 * self.radius
+        col = b if b >= 0 else self.n_obstacles
+        return float(static_clearances(self.env, ends[:, a], self.n_obstacles)[:, col].min()) - self.radius

@@ -5,11 +5,14 @@ from __future__ import annotations
 import math
 import time as _time
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from ..words import plural, reached_phrase, run_notes
 from .contacts import Contact
+from .drive_timing import timing_notes
+from .events import ContactEvent, group_events
 from .realism import Disturbance
 from .recovery import Replan
 
@@ -64,6 +67,23 @@ class SimReport:
     phase_margin_deg: the controller's phase margin with its delays
         (:func:`sim.execute.realism.phase_margin`; latency plus half the hold);
         at or below zero the loop is unstable and the verdict says so.
+    accept: the rule of :attr:`ok` (``sim.accept``): ``"targets"``, every
+        target holds a working robot; ``"working"``, every working robot is
+        on a distinct target or its parking place.
+    targets_total, targets_working: the problem's targets, and how many of
+        them hold a working robot at the end (``-1``: not known).
+    budget_exhausted_at: when a tracking-error trigger first found the
+        replan budget (``sim.recovery.max_replans``) used up [s], or None.
+    on_budget: ``sim.recovery.on_budget``; with ``"fail"`` an exhausted
+        budget fails the run.
+    headings: ``(T, m)`` each robot's heading at each sample [rad, from +x,
+        counter-clockwise], or ``None`` when the drive has none (holonomic
+        and velocity robots).
+    drive: the drive model (:mod:`sim.execute.drive`).
+    drive_timing: whether the drive can keep the plan's timing
+        (:func:`sim.execute.drive_timing.drive_timing`), ``None`` for holonomic robots.
+    speed_warnings: physics steps in which a body moved too far for pymunk to
+        see every contact even in pieces (:class:`sim.execute.contacts.SpeedGuard`).
     """
 
     contacts: tuple[Contact, ...]
@@ -91,11 +111,29 @@ class SimReport:
     stopped: str = ""
     targets_filled: int = -1
     phase_margin_deg: float = float("nan")
+    accept: str = "targets"
+    targets_total: int = -1
+    targets_working: int = -1
+    budget_exhausted_at: float | None = None
+    on_budget: str = "fail"
+    headings: np.ndarray | None = None
+    drive: str = "holonomic"
+    drive_timing: dict | None = None
+    speed_warnings: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
-        """No contact by either witness, and every working robot on a distinct target."""
-        return not self.contacts and self.reached and not self.stopped
+        """No contact by either witness, no early stop, no exhausted replan budget (unless
+        ``on_budget`` is ``"continue"``), every working robot on a distinct target and, with
+        ``accept == "targets"``, every target holding a working robot."""
+        if self.contacts or self.stopped or not self.reached or self.budget_failed:
+            return False
+        return self.accept != "targets" or self.targets_working >= self.targets_total
+
+    @property
+    def budget_failed(self) -> bool:
+        """The replan budget ran out and ``on_budget`` says that fails the run."""
+        return self.budget_exhausted_at is not None and self.on_budget != "continue"
 
     @property
     def parked(self) -> int:
@@ -105,6 +143,11 @@ class SimReport:
     @property
     def first_contact(self) -> Contact | None:
         return self.contacts[0] if self.contacts else None
+
+    @cached_property
+    def events(self) -> tuple[ContactEvent, ...]:
+        """The contacts as events, each with the witnesses that saw it (:func:`sim.execute.events.group_events`)."""
+        return tuple(group_events(self.contacts))
 
     def series(self, max_samples: int = 2000) -> dict | None:
         """``times``, ``min_gap`` and ``tracking_error`` thinned for plots (:func:`sim.execute.series.thin`), or None."""
@@ -125,10 +168,13 @@ class SimReport:
         """One line: what happened."""
         parts = []
         if self.contacts:
-            c = self.contacts[0]
-            parts.append(f"{plural(len(self.contacts), 'contact')}, the first: {c.describe()}")
+            c = self.events[0]
+            parts.append(f"{plural(len(self.events), 'contact')}, the first: {c.describe()}")
         if self.stopped:
             parts.append(f"stopped: {self.stopped}")
+        if self.budget_exhausted_at is not None:
+            parts.append(f"replan budget exhausted at t = {self.budget_exhausted_at:.3f} s"
+                         + (" (sim.recovery.on_budget: continue)" if not self.budget_failed else ""))
         if self.reached_robots is not None and not self.reached and not self.stopped:
             working = [i for i in range(len(self.reached_robots)) if i not in self.failed]
             missed = [i for i in working if not self.reached_robots[i]]
@@ -139,13 +185,19 @@ class SimReport:
             parts.insert(0, "no contact, " + reached_phrase(bool(self.failed), self.parked))
         parts += run_notes(self.failed, self.parked, self.targets_filled, m, len(self.replans),
                            self.phase_margin_deg, advice=True)
+        parts += timing_notes(self.drive_timing)
+        if self.speed_warnings:
+            parts.append(f"{plural(len(self.speed_warnings), 'speed warning')}, the first: {self.speed_warnings[0]}")
+        if self.targets_total >= 0 and self.failed:  # without failures both rules agree
+            parts.append(f"accept: {self.accept} ({self.targets_working} of {self.targets_total} targets hold "
+                         "a working robot)")
         return "; ".join(parts)
 
     def to_dict(self) -> dict:
         """JSON-ready summary (no per-sample arrays)."""
         d = {
             "ok": self.ok,
-            "contacts": len(self.contacts),
+            "contacts": len(self.events),
             "contacts_pymunk": sum(c.witness == "pymunk" for c in self.contacts),
             "contacts_monitor": sum(c.witness == "monitor" for c in self.contacts),
             "min_clearance": _finite(self.min_clearance),
@@ -159,7 +211,10 @@ class SimReport:
             "wall_time_s": self.wall_time_s,
             "realtime_factor": _finite(self.realtime_factor),
             "contact_list": [c.to_dict() for c in self.contacts[:_LIST_MAX]],
+            "contact_events": [e.to_dict() for e in self.events[:_LIST_MAX]],
         }
+        if len(self.events) > _LIST_MAX:
+            d["contact_events_truncated"] = True
         if len(self.contacts) > _LIST_MAX:
             d["contact_list_truncated"] = True
         d["first_contact"] = self.contacts[0].to_dict() if self.contacts else None
@@ -183,6 +238,14 @@ class SimReport:
         d["stopped"] = self.stopped or None
         d["targets_filled"] = self.targets_filled
         d["phase_margin_deg"] = _finite(self.phase_margin_deg)
+        d["accept"] = self.accept
+        d["targets_working"] = self.targets_working
+        d["budget_exhausted_at"] = self.budget_exhausted_at
+        if self.drive != "holonomic":
+            d["drive"] = self.drive
+            d["drive_timing"] = self.drive_timing
+        if self.speed_warnings:
+            d["speed_warnings"] = list(self.speed_warnings)
         d["verdict"] = self.verdict
         return d
 
@@ -190,7 +253,9 @@ class SimReport:
 
 def assemble(witness, monitor, times, positions, tracking, reached, final_error, per_robot,
             *, sim_time, wall0, step_time, masses, failed, disturbances, replans, stopped,
-            targets_filled, phase_margin_deg) -> SimReport:
+            targets_filled, phase_margin_deg, accept="targets", targets_total=-1, targets_working=-1,
+            budget_exhausted_at=None, on_budget="fail", headings=None, drive="holonomic",
+            drive_timing=None) -> SimReport:
     contacts = sorted(
         witness.contacts() + monitor.contacts(),
         key=lambda c: (c.time, c.witness != "pymunk", c.kind, c.a, c.b),
@@ -230,6 +295,15 @@ def assemble(witness, monitor, times, positions, tracking, reached, final_error,
         stopped=stopped,
         targets_filled=targets_filled,
         phase_margin_deg=phase_margin_deg,
+        accept=accept,
+        targets_total=targets_total,
+        targets_working=targets_working,
+        budget_exhausted_at=budget_exhausted_at,
+        on_budget=on_budget,
+        headings=headings,
+        drive=drive,
+        drive_timing=drive_timing,
+        speed_warnings=tuple(getattr(witness, "speed_warnings", ())),
     )
 
 

@@ -35,8 +35,10 @@ from typing import Callable
 import numpy as np
 
 from .contacts import Contact, PymunkWitness
-from .monitor import GapMonitor
 from .control import pd_acceleration, reference_chunk
+from .drive import check_drive
+from .guard import SpeedGuard
+from .monitor import GapMonitor
 from .outcome import SimReport, assemble, filled, reached
 from .real import CHUNK as _CHUNK
 from .real import execute_real
@@ -54,7 +56,8 @@ def execute(problem, plan, params, rng: np.random.Generator | None = None, *,
     ``params`` is a :class:`sim.scenario.params.SimParams`.  ``rng`` is the run's
     generator; every random draw of the run (masses, noise, pushes,
     replanning) comes from streams derived from it
-    (:func:`sim.execute.realism.streams`); default: seeded with 0.
+    (:func:`sim.execute.realism.streams`); a realistic run needs it (there
+    is no default seed: a run made with ``Scenario.generator`` repeats).
     ``planner_params`` (:class:`planner.PlannerParams`) are used by
     replans.  ``progress``, if given, is called now and then with the
     fraction of simulated time done (ends with ``1.0``).  Raises
@@ -63,7 +66,9 @@ def execute(problem, plan, params, rng: np.random.Generator | None = None, *,
     _check(problem, plan, params)
     if not params.realistic:
         return _execute(problem, plan, params, progress)
-    rng = rng if rng is not None else np.random.default_rng(0)
+    if rng is None:
+        raise ValueError("rng: a realistic run draws noise, masses and pushes from the run's generator; "
+                         "pass it (numpy.random.Generator, e.g. Scenario.generator())")
     return execute_real(problem, plan, params, rng, planner_params, progress)
 
 
@@ -87,12 +92,12 @@ def _check(problem, plan, params) -> None:
         if not (number and (v > low if strict else v >= low)):
             rng = f"({low:g}, inf)" if strict else f"[{low:g}, inf)"
             raise ValueError(f"sim.{name}: must be a number in the range {rng}, got {v!r}")
-    if not (isinstance(params.substeps, numbers.Integral) and params.substeps >= 1):
+    if not (isinstance(params.substeps, numbers.Integral) and int(params.substeps) >= 1):
         raise ValueError(f"sim.substeps: must be an int in the range [1, inf), got {params.substeps!r}")
     if params.mass_error >= 1:
         raise ValueError(f"sim.mass_error: must be a number in the range [0, 1), got {params.mass_error!r}")
     rate = params.control_rate
-    if rate is not None and not (isinstance(rate, numbers.Real) and math.isfinite(rate) and rate >= 0):
+    if rate is not None and not (isinstance(rate, numbers.Real) and math.isfinite(rate) and float(rate) >= 0):
         raise ValueError(f"sim.control_rate: must be a number >= 0 or None, got {rate!r}")
     for k, d in enumerate(params.disturbances):
         if not 0 <= d.robot < problem.m:
@@ -100,6 +105,7 @@ def _check(problem, plan, params) -> None:
     for k, f in enumerate(params.failures):
         if not 0 <= f.robot < problem.m:
             raise ValueError(f"sim.failures[{k}].robot: must be in the range [0, {problem.m}), got {f.robot!r}")
+    check_drive(params.drive)
 
 
 def _execute(problem, plan, params, progress) -> SimReport:
@@ -130,6 +136,7 @@ def _execute(problem, plan, params, progress) -> SimReport:
     forces = world.forces
     step_time = 0.0
     perf = _time.perf_counter
+    guard = SpeedGuard(world, witness, monitor, problem.radius, np.full(m, mass), float(params.force_limit), dt, h)
 
     for k0 in range(0, n_steps, _CHUNK):
         count = min(_CHUNK, n_steps - k0)
@@ -140,14 +147,17 @@ def _execute(problem, plan, params, progress) -> SimReport:
             )
             np.multiply(acc, mass, out=forces)
             t0 = times[k0 + j]
+            watch = guard.begin(t0, state)
             for s in range(1, n_sub + 1):
                 witness.now = t0 + s * h
                 world.apply_forces()
                 c0 = perf()
-                space.step(h)
+                guard.step(t0 + s * h) if watch else space.step(h)
                 step_time += perf() - c0
             state = world.state()
             positions[k0 + j + 1] = state[:, :2]
+            if watch:
+                guard.end()
         sl = slice(k0 + 1, k0 + count + 1)
         monitor.observe(times[sl], positions[sl])
         err = positions[sl] - ref.pos[1:]
@@ -165,5 +175,7 @@ def _execute(problem, plan, params, progress) -> SimReport:
         masses=np.full(m, mass), failed=(), disturbances=(), replans=(), stopped="",
         targets_filled=filled(positions[-1], problem.target, float(params.tolerance)),
         phase_margin_deg=phase_margin(kp, kd, 0.5 * dt),
+        accept=params.accept, targets_total=len(problem.target),
+        targets_working=filled(positions[-1], problem.target, float(params.tolerance)),
     )
 

@@ -2,10 +2,10 @@
 
 Each control step of ``dt`` runs ``substeps`` physics steps.  At each physics
 step the events that fall due are applied (:func:`_apply_events`), the
-controller updates when its clock says so, from a noisy measurement, and puts
-its force into the delay line (:func:`_control`), the held force goes out
-with friction and the brakes of failed robots (:func:`_actuate`), and pymunk
-steps.  After each control step the sample is recorded, then recovery looks
+controller updates when its clock says so, from a noisy measurement or a
+filter's estimate (:mod:`sim.execute.estimate`), and puts its force into the
+delay line (:func:`_control`), the held force goes out with friction and the
+brakes of failed robots (:func:`_actuate`), and pymunk steps.  After each control step the sample is recorded, then recovery looks
 at it (:func:`_check_trigger`): a failure or a tracking error above the
 trigger brakes the swarm on a stop profile, the robots' positions are
 averaged, and the planner plans again from there (:func:`_replan`).
@@ -21,11 +21,14 @@ from typing import Any
 import numpy as np
 
 from .contacts import PymunkWitness
-from .monitor import GapMonitor
 from .control import PlanReference, pd_acceleration
+from .drive import drive_report, make_drive
+from .estimate import failure_delay, make_estimator
+from .guard import SpeedGuard
+from .monitor import GapMonitor
 from .outcome import SimReport, assemble, filled, reached
-from .realism import G, ControlClock, DelayLine, Events, Resistance, Sensor, phase_margin, real_masses, streams
-from .recovery import AVERAGE, SETTLE, RecoveryFailed, Replan, StopReference, replan
+from .realism import ControlClock, DelayLine, Events, G, Resistance, Sensor, phase_margin, real_masses, streams
+from .recovery import AVERAGE, SETTLE, RecoveryFailed, Replan, StopReference, replan, replan_world
 from .world import World, build_world
 
 __all__ = ["CHUNK", "execute_real"]
@@ -110,11 +113,20 @@ class _Run:
     replan_at: float = math.inf
     avg_sum: np.ndarray | None = None
     avg_n: int = 0
+    # estimation (:mod:`sim.execute.estimate`) and what recovery knows
+    estimator: Any = None  # the filter, or None: the controller measures the true state
+    known: np.ndarray | None = None  # (m,) robots recovery believes working
+    declared: list = field(default_factory=list)  # failed robots recovery has been told of
+    pending: list = field(default_factory=list)  # (time told, robot) of failures not told yet
+    budget_used: int = 0  # replans for tracking errors
+    budget_exhausted_at: float | None = None
     # bookkeeping
     k: int = 0
     stopped: str = ""
     step_time: float = 0.0
     last_progress: float = 0.0
+    drive: Any = None  # a :class:`sim.execute.drive.Drive`, or None for holonomic robots
+    guard: Any = None  # a :class:`sim.execute.contacts.SpeedGuard`: watches steps fast enough to tunnel
 
     @property
     def m(self) -> int:
@@ -203,6 +215,11 @@ def _start(problem, plan, params, rng, planner_params) -> _Run:
     run.act = run.cmd
     run.state = world.state()
     run.last_meas = run.state.copy()
+    run.drive = make_drive(world, params, plan)
+    run.estimator = make_estimator(params, run.state[:, :2], gens, dt)
+    run.known = np.ones(m, bool)
+    run.guard = SpeedGuard(world, run.witness, run.samples.monitor, radius, masses,
+                           2.0 * float(params.force_limit) + float(friction.max(initial=0.0)), dt, run.h)
     return run
 
 
@@ -221,20 +238,24 @@ def _control_step(run: _Run) -> None:
     h = run.h
     t0 = run.k * run.dt
     run.valid = True
-    space, perf = run.world.space, _time.perf_counter
+    space, perf, drive = run.world.space, _time.perf_counter, run.drive
+    watch = run.guard.begin(t0, run.state, run.events.next_time() < t0 + run.dt - _EPS_T)
     for s in range(int(run.params.substeps)):
         t = t0 + s * h
         if run.events.next_time() <= t + _EPS_T:
             _apply_events(run, t)
+        if run.estimator is not None and run.estimator.clock.due(t):
+            run.estimator.sample(t, run.fresh_state()[:, :2])
         if run.clock.due(t):
-            _control(run, t)
-        _actuate(run, t)
+            (_control if drive is None else drive.control)(run, t)
+        (_actuate if drive is None else drive.actuate)(run, t)
         run.witness.now = t + h
         run.world.apply_forces()
         c0 = perf()
-        space.step(h)
+        run.guard.step(t + h) if watch else space.step(h)
         run.step_time += perf() - c0
         run.valid = False
+    run.guard.end()
 
 
 def _apply_events(run: _Run, t: float) -> None:
@@ -246,7 +267,7 @@ def _apply_events(run: _Run, t: float) -> None:
             if run.working[ev.robot]:
                 run.working[ev.robot] = False
                 run.failed.append(ev.robot)
-                run.new_failure = run.new_failure or f"robot {ev.robot} failed"
+                run.pending.append((t + failure_delay(run.params), ev.robot))
                 run.cmd_dirty = run.resist = True
                 run.resistance.set_limit(run.friction + np.where(run.working, 0.0, brake))
         else:
@@ -255,14 +276,19 @@ def _apply_events(run: _Run, t: float) -> None:
 
 
 def _control(run: _Run, t: float) -> None:
-    """The controller's update: measure, PD plus feed-forward, into the delay line."""
-    meas = run.sensor.measure(run.fresh_state())
+    """The controller's update: measure (or estimate), PD plus feed-forward, into the delay line."""
+    if run.estimator is None:
+        meas = run.sensor.measure(run.fresh_state())
+    else:
+        meas = run.estimator.update(t)
     run.last_meas_t, run.last_meas = t, meas
     rp, rv, _ = run.ref_at(t)
     p = run.params
     acc = pd_acceleration(meas[:, :2], meas[:, 2:], rp, rv, run.ref.at(t + 0.5 * run.clock.period)[2],
                           float(p.kp), float(p.kd), run.a_lim)
     run.line.put(t, acc * float(p.mass))
+    if run.estimator is not None:
+        run.estimator.command(t + run.line.latency, acc)
     if run.mode == "brake" and t >= run.avg_from - _EPS_T:
         run.avg_sum += meas[:, :2]
         run.avg_n += 1
@@ -286,14 +312,26 @@ def _actuate(run: _Run, t: float) -> None:
 
 def _check_trigger(run: _Run, t_now: float, err: np.ndarray) -> None:
     """Recovery's trigger: a new failure or a tracking error above the trigger starts braking."""
+    while run.pending and run.pending[0][0] <= t_now + _EPS_T:  # told after the failure detection delay
+        robot = run.pending.pop(0)[1]
+        run.known[robot] = False
+        run.declared.append(robot)
+        run.new_failure = run.new_failure or f"robot {robot} failed"
+        run.trigger_reason += f"; robot {robot} failed" if run.mode == "brake" else ""  # the coming replan
     rec = run.params.recovery
-    if not (rec.replan and run.mode == "track" and len(run.replans) < rec.max_replans):
+    if not (rec.replan and run.mode == "track"):
         return
-    working = run.working
-    reason = run.new_failure
+    working = run.known
+    reason = run.new_failure  # a failure is always answered: it does not use the budget
     if not reason and working.any():
+        if run.estimator is not None:  # recovery sees the estimate, not the truth
+            err = run.estimator.growing_error(t_now, *run.ref_at(t_now)[:2])
         worst = int(np.nanargmax(np.where(working, err, -np.inf)))
         if err[worst] > rec.trigger:
+            if run.budget_used >= rec.max_replans:  # exhausted: named in the report
+                run.budget_exhausted_at = t_now if run.budget_exhausted_at is None else run.budget_exhausted_at
+                return
+            run.budget_used += 1
             reason = f"tracking error {err[worst]:.3g} of robot {worst} > trigger {rec.trigger:g}"
     if reason and working.any():
         run.mode = "brake"
@@ -313,21 +351,21 @@ def _replan(run: _Run, t_now: float) -> bool:
 
     problem = run.problem
     start = run.avg_sum / run.avg_n if run.avg_n else run.last_meas[:, :2].copy()
-    rows = np.flatnonzero(run.working)
-    fixed = start[~run.working]
+    rows = np.flatnonzero(run.known)
+    fixed = start[~run.known]
     wall = _time.perf_counter()
     try:
         found = replan(problem, start[rows], fixed, problem.target, run.replan_params,
-                       run.params.recovery.time_limit, run.gens["replan"])
+                       run.params.recovery.replan_time_limit, run.gens["replan"])
     except RecoveryFailed as exc:
-        run.replans.append(Replan(run.trigger_time, t_now, run.trigger_reason, len(rows), tuple(run.failed), (),
+        run.replans.append(Replan(run.trigger_time, t_now, run.trigger_reason, len(rows), tuple(run.declared), (),
                                   False, False, 0, 0.0, None, _time.perf_counter() - wall, str(exc)))
         run.stopped = f"replan at t = {t_now:.3f} s found no way on: {exc}"
         return False
     new_plan = found.plan
     run.targets = found.targets
-    gap = _finite(min_clearance(_replan_world(problem, fixed, start[rows], run.targets), new_plan).value)
-    run.replans.append(Replan(run.trigger_time, t_now, run.trigger_reason, len(rows), tuple(run.failed),
+    gap = _finite(min_clearance(replan_world(problem, fixed, start[rows], run.targets), new_plan).value)
+    run.replans.append(Replan(run.trigger_time, t_now, run.trigger_reason, len(rows), tuple(run.declared),
                               tuple(int(i) for i in found.dropped), found.separated, True, new_plan.steps,
                               new_plan.makespan, gap, found.planning_time_s,
                               parked=tuple((float(x), float(y)) for x, y in found.parked)))
@@ -336,15 +374,6 @@ def _replan(run: _Run, t_now: float) -> bool:
     run.avg_from = run.replan_at = math.inf
     run.n_end = run.k + max(0, math.ceil((new_plan.makespan + float(run.params.settle_time)) / run.dt - 1e-9))
     return True
-
-
-def _replan_world(problem, fixed, start, targets):
-    """The replan's world (failed robots as discs) for measuring the new plan's exact clearance."""
-    from planner import Circle, Problem
-
-    obstacles = tuple(problem.obstacles) + tuple(Circle((float(x), float(y)), problem.radius) for x, y in fixed)
-    return Problem(problem.width, problem.height, obstacles, problem.radius, problem.margin, start, targets,
-                   problem.max_speed, problem.max_accel)
 
 
 def _finish(run: _Run, wall0: float) -> SimReport:
@@ -362,5 +391,9 @@ def _finish(run: _Run, wall0: float) -> SimReport:
         disturbances=run.disturbances, replans=run.replans, stopped=run.stopped,
         targets_filled=filled(positions[-1], run.problem.target, float(p.tolerance)),
         phase_margin_deg=phase_margin(float(p.kp), float(p.kd), float(p.latency) + 0.5 * run.clock.period),
+        accept=p.accept, targets_total=len(run.problem.target), budget_exhausted_at=run.budget_exhausted_at,
+        targets_working=filled(positions[-1][run.working], run.problem.target, float(p.tolerance)),
+        on_budget=p.recovery.on_budget,
+        **drive_report(run.drive, len(times)),
     )
 

@@ -68,7 +68,7 @@ G = 9.81
 """Gravity for floor friction [units/s^2] (a workspace unit counts as a metre)."""
 
 _EPS_T = 1e-9  # times closer than this [s] count as equal
-_STREAMS = ("masses", "noise", "pushes", "replan")
+_STREAMS = ("masses", "noise", "pushes", "replan", "sensing")  # new names go last: spawn keeps the others
 _PUSH_WINDOW = 1.0  # seconds of pushes drawn at a time
 
 

@@ -2,7 +2,14 @@
 
 With ``sim.recovery.replan`` the executor (:func:`sim.execute`)
 watches every recorded sample.  When a working robot's tracking error
-exceeds ``recovery.trigger``, or a robot fails, it runs this sequence:
+exceeds ``recovery.trigger``, or a robot fails, it runs this sequence.
+With a filter (:mod:`sim.execute.estimate`) it sees only the estimate: the
+estimated error, counted only while it grows (an error the controller is
+already closing does not replan), and a failure ``sensing.failure_delay``
+seconds after it happens.  A failure is always answered; tracking-error
+replans are limited to ``recovery.max_replans``, and one refused for that is
+named in the report (``budget_exhausted_at``) and fails the run unless
+``recovery.on_budget`` is ``continue``.
 
 1. **Brake.**  Every working robot's reference becomes a stop profile
    (:class:`StopReference`): from the state its controller last measured, it
@@ -32,7 +39,7 @@ exceeds ``recovery.trigger``, or a robot fails, it runs this sequence:
    robots at rest, and the report says why.
 
 The planner is called with the scenario's planner settings, but with ``g``
-and ``q`` on auto (anytime) and ``recovery.time_limit``; its generator is the
+and ``q`` on auto (anytime) and ``recovery.replan_time_limit``; its generator is the
 run's replan stream (:func:`sim.execute.realism.streams`).
 """
 
@@ -60,6 +67,7 @@ __all__ = [
     "drop_targets",
     "parking",
     "replan",
+    "replan_world",
     "separation_step",
 ]
 
@@ -371,3 +379,10 @@ def replan(base: Problem, start: np.ndarray, failed: np.ndarray, targets: np.nda
                       np.concatenate([start[None], result.waypoints]),
                       base.max_speed, base.max_accel, result.stats)
     return NewPlan(result, kept, dropped, parked, goal, separated, _time.perf_counter() - t0)
+
+
+def replan_world(problem: Problem, fixed: np.ndarray, start: np.ndarray, targets: np.ndarray) -> Problem:
+    """The replan's world (failed robots as discs) for measuring the new plan's exact clearance."""
+    obstacles = tuple(problem.obstacles) + tuple(Circle((float(x), float(y)), problem.radius) for x, y in fixed)
+    return Problem(problem.width, problem.height, obstacles, problem.radius, problem.margin, start, targets,
+                   problem.max_speed, problem.max_accel)

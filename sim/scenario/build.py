@@ -116,9 +116,8 @@ def build_legs(scenario: Scenario, rng: np.random.Generator) -> tuple[Problem, t
                 pts = scatter(shell.env, s.count, sep, clearance, rng, region=spec.region, field=key)
                 check_placement(shell, pts, key)
             else:
-                shape = shapes.get(key)
-                if shape is None:
-                    shape = _shape(make_shape, spec, s, sep, rng, key)
+                known = shapes.get(key)
+                shape = known if known is not None else _shape(make_shape, spec, s, sep, rng, key)
                 pts = place_formation(
                     shape,
                     shell.env,

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from planner.inputfile import echo_path
 from planner.params import PlannerParams
 from planner.problem import Circle, Polygon
@@ -136,6 +138,15 @@ class Scenario:
     def describe(self) -> str:
         """``start -> target`` (every target of a chain)."""
         return " -> ".join(spec.describe() for spec in (self.start, *self.legs))
+
+    def generator(self, seed: int | None = None) -> np.random.Generator:
+        """The run's one generator, seeded with ``seed`` (default: the scenario's).
+
+        Every random choice of a run (random obstacles, rotations, centres, scatter,
+        the planner, the physics' streams) draws from it, in a fixed order; this is the
+        only place a run's generator is made.
+        """
+        return np.random.default_rng(self.seed if seed is None else seed)
 
 
 # ----------------------------------------------------------------------------

@@ -7,12 +7,14 @@ from dataclasses import dataclass
 __all__ = [
     "MAX_FPS",
     "MAX_RENDER_SIZE",
+    "DriveParams",
     "Failure",
     "Impulse",
     "Noise",
     "Pushes",
     "Recovery",
     "RenderParams",
+    "Sensing",
     "SimParams",
 ]
 
@@ -75,15 +77,94 @@ class Recovery:
 
     replan: when any robot's tracking error exceeds ``trigger`` [units], or a
         robot fails, every robot brakes to rest and the planner plans again
-        from the measured positions.
-    time_limit: planning time allowed for each replan [s].
-    max_replans: the most replans of one run; later triggers are ignored.
+        from the measured (estimated) positions.
+    replan_time_limit: planning time allowed for each replan [s].  The YAML
+        key ``sim.recovery.time_limit`` is an alias of it (giving both is an
+        error); :attr:`time_limit` reads it too.
+    max_replans: the most replans for tracking errors in one run.  A robot
+        failure is always answered with a replan and does not count (there
+        are at most as many as robots).  A tracking-error trigger that finds
+        the budget used up exhausts it: the report names the time
+        (``budget_exhausted_at``) and the run fails, unless ``on_budget``
+        is ``"continue"`` (the old rule: later triggers are ignored).
+    on_budget: ``"fail"`` (default) or ``"continue"``.
     """
 
     replan: bool = False
     trigger: float = 0.05
-    time_limit: float = 10.0
+    replan_time_limit: float = 10.0
     max_replans: int = 10
+    on_budget: str = "fail"
+
+    @property
+    def time_limit(self) -> float:
+        """The old name of :attr:`replan_time_limit` [s]."""
+        return self.replan_time_limit
+
+
+@dataclass(frozen=True)
+class Sensing:
+    """What the controller measures (:mod:`sim.execute.estimate`), when given as ``sim.sensing``.
+
+    With a ``sim.sensing`` section, or with ``noise.position > 0``, the
+    controller and recovery's trigger see only the state a filter estimates
+    from position measurements; velocity is never measured.  Without both,
+    or with ``estimator: oracle``, the controller measures the true state
+    plus :class:`Noise` (position and velocity) as before.
+
+    rate: position measurements per second [Hz]; ``None`` = the controller's
+        update rate.  Range (0, 10000].
+    dropout: probability that a measurement of one robot is lost, [0, 1).
+    latency_jitter: each measurement reaches the filter ``U(0, jitter)``
+        seconds after it was taken [s], [0, 1]; one older than the last one
+        used for that robot is discarded.
+    bias_drift: each robot's measured position carries a bias that is a
+        random walk of ``bias_drift`` units per square-root second, per
+        axis, unknown to the filter [units/sqrt(s)], [0, 10].
+    estimator: ``kalman`` (constant-velocity Kalman filter, default),
+        ``alpha_beta`` (its steady-state gains) or ``oracle``.
+    process_noise: the filter's white-acceleration spectral density
+        [units^2/s^3], (0, 1e8]; unmodelled forces (pushes, friction).
+    failure_delay: seconds from a robot's failure until recovery is told
+        [s], [0, 60]; ``None`` = 0.5 s with a filter, 0 with ``oracle``.
+    """
+
+    rate: float | None = None
+    dropout: float = 0.0
+    latency_jitter: float = 0.0
+    bias_drift: float = 0.0
+    estimator: str = "kalman"
+    process_noise: float = 100.0
+    failure_delay: float | None = None
+
+
+@dataclass(frozen=True)
+class DriveParams:
+    """How a robot moves (``sim.drive``; :mod:`sim.execute.drive`).
+
+    model: ``holonomic`` (default: a force in any direction, PD +
+        feed-forward), ``differential`` (two wheels, no lateral slip) or
+        ``velocity`` (first-order tracking of velocity set-points).
+    wheel_base: distance between the wheels [units], (0, 100] (differential).
+    wheel_speed: largest wheel speed [units/s], (0, 1000] (differential);
+        the largest turn rate is ``2 wheel_speed / wheel_base`` [rad/s].
+    wheel_accel: largest wheel acceleration [units/s^2], (0, 1e5] (differential).
+    lookahead: distance of the tracked point ahead of the axle [units],
+        (0, 100] (differential).
+    time_constant: ``tau`` of ``v' = (v_cmd - v) / tau`` [s], (0, 10] (velocity).
+    max_speed: largest velocity set-point [units/s], (0, 1000] (velocity).
+    kp_v: position gain of the set-point ``v_ref + kp_v (p_ref - p)``
+        [1/s], [0, 1000] (differential and velocity).
+    """
+
+    model: str = "holonomic"
+    wheel_base: float = 0.8
+    wheel_speed: float = 3.0
+    wheel_accel: float = 10.0
+    lookahead: float = 0.3
+    time_constant: float = 0.1
+    max_speed: float = 3.0
+    kp_v: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -119,6 +200,14 @@ class SimParams:
     pushes: random impulses (:class:`Pushes`).
     failures: robots that stop actuating (:class:`Failure`).
     recovery: online recovery (:class:`Recovery`).
+    sensing: measurement and state estimation (:class:`Sensing`), or
+        ``None``: a filter when ``noise.position > 0``, else the true state.
+    accept: the rule of ``SimReport.ok`` besides "no contact":
+        ``"targets"`` (default): every target of the problem holds a working
+        robot at the end; ``"working"``: every working robot ends on a
+        distinct target (or its parking place), targets may stay empty.
+    drive: the drive model (:class:`DriveParams`); any but ``holonomic``
+        runs the realistic loop.
     """
 
     mass: float = 1.0
@@ -138,6 +227,16 @@ class SimParams:
     pushes: Pushes = Pushes()
     failures: tuple[Failure, ...] = ()
     recovery: Recovery = Recovery()
+    sensing: Sensing | None = None
+    accept: str = "targets"
+    drive: DriveParams = DriveParams()
+
+    @property
+    def estimating(self) -> bool:
+        """Whether the controller sees a filter's estimate (see :class:`Sensing`)."""
+        if self.sensing is not None:
+            return self.sensing.estimator != "oracle"
+        return self.noise.position > 0
 
     @property
     def realistic(self) -> bool:
@@ -153,6 +252,8 @@ class SimParams:
             or (self.pushes.rate > 0 and self.pushes.impulse > 0)
             or self.failures
             or self.recovery.replan
+            or self.sensing is not None
+            or self.drive.model != "holonomic"
         )
 
 

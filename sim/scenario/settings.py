@@ -7,7 +7,19 @@ from dataclasses import fields
 from planner.params import PlannerParams
 
 from .fields import _kind, _Reader
-from .params import MAX_FPS, MAX_RENDER_SIZE, Failure, Impulse, Noise, Pushes, Recovery, RenderParams, SimParams
+from .params import (
+    MAX_FPS,
+    MAX_RENDER_SIZE,
+    DriveParams,
+    Failure,
+    Impulse,
+    Noise,
+    Pushes,
+    Recovery,
+    RenderParams,
+    Sensing,
+    SimParams,
+)
 
 __all__: list[str] = []  # private to the scenario room
 
@@ -49,6 +61,9 @@ def _read_sim(r: _Reader, value, count: int) -> SimParams:
         pushes=_read_pushes(r, v.get("pushes")),
         failures=_read_failures(r, v.get("failures"), count),
         recovery=_read_recovery(r, v.get("recovery")),
+        sensing=_read_sensing(r, v.get("sensing")),
+        accept=_choice(r, v.get("accept", d.accept), "sim.accept", ("targets", "working")),
+        drive=_read_drive(r, v.get("drive")),
     )
 
 
@@ -122,17 +137,69 @@ def _read_failures(r: _Reader, value, count: int) -> tuple[Failure, ...]:
 
 
 def _read_recovery(r: _Reader, value) -> Recovery:
-    v = r.mapping(value, "sim.recovery", ("replan", "trigger", "time_limit", "max_replans"))
+    v = r.mapping(value, "sim.recovery",
+                  ("replan", "trigger", "replan_time_limit", "time_limit", "max_replans", "on_budget"))
     d = Recovery()
     max_replans = r.integer(v.get("max_replans", d.max_replans), "sim.recovery.max_replans", ge=1)
     if max_replans > 100:
         r.fail("sim.recovery.max_replans", f"must be <= 100, got {max_replans}")
+    if "time_limit" in v and "replan_time_limit" in v:
+        r.fail("sim.recovery.time_limit", "is the old name of sim.recovery.replan_time_limit; give only one")
+    key = "time_limit" if "time_limit" in v else "replan_time_limit"
     return Recovery(
         replan=r.boolean(v.get("replan", d.replan), "sim.recovery.replan"),
         trigger=r.number(v.get("trigger", d.trigger), "sim.recovery.trigger", gt=0, le=100),
-        time_limit=r.number(v.get("time_limit", d.time_limit), "sim.recovery.time_limit", gt=0, le=600),
+        replan_time_limit=r.number(v.get(key, d.replan_time_limit), f"sim.recovery.{key}", gt=0, le=600),
         max_replans=max_replans,
+        on_budget=_choice(r, v.get("on_budget", d.on_budget), "sim.recovery.on_budget", ("fail", "continue")),
     )
+
+
+def _choice(r: _Reader, value, field: str, allowed: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in allowed:
+        r.fail(field, f"must be one of {', '.join(allowed)}, got {_kind(value)}")
+    return value
+
+
+def _read_sensing(r: _Reader, value) -> Sensing | None:
+    if value is None:
+        return None
+    keys = ("rate", "dropout", "latency_jitter", "bias_drift", "estimator", "process_noise", "failure_delay")
+    v = r.mapping(value, "sim.sensing", keys)
+    d = Sensing()
+    rate, delay = v.get("rate"), v.get("failure_delay")
+    return Sensing(
+        rate=None if rate is None else r.number(rate, "sim.sensing.rate", gt=0, le=10000),
+        dropout=r.number(v.get("dropout", d.dropout), "sim.sensing.dropout", ge=0, lt=1),
+        latency_jitter=r.number(v.get("latency_jitter", d.latency_jitter), "sim.sensing.latency_jitter", ge=0, le=1),
+        bias_drift=r.number(v.get("bias_drift", d.bias_drift), "sim.sensing.bias_drift", ge=0, le=10),
+        estimator=_choice(r, v.get("estimator", d.estimator), "sim.sensing.estimator",
+                          ("kalman", "alpha_beta", "oracle")),
+        process_noise=r.number(v.get("process_noise", d.process_noise), "sim.sensing.process_noise", gt=0, le=1e8),
+        failure_delay=None if delay is None else r.number(delay, "sim.sensing.failure_delay", ge=0, le=60),
+    )
+
+
+_DRIVE_KEYS = {"holonomic": (), "differential": ("wheel_base", "wheel_speed", "wheel_accel", "lookahead", "kp_v"),
+               "velocity": ("time_constant", "max_speed", "kp_v")}
+
+
+def _read_drive(r: _Reader, value) -> DriveParams:
+    """``sim.drive``: a model name, or a mapping with ``model`` and that model's settings."""
+    if isinstance(value, str):
+        value = {"model": value}
+    v = r.mapping(value, "sim.drive", tuple(f.name for f in fields(DriveParams)))
+    d = DriveParams()
+    model = _choice(r, v.get("model", d.model), "sim.drive.model", tuple(_DRIVE_KEYS))
+    for key in v:
+        if key != "model" and key not in _DRIVE_KEYS[model]:
+            r.fail(f"sim.drive.{key}", f"is not a setting of the {model} drive (its settings: "
+                   f"{', '.join(_DRIVE_KEYS[model]) or 'none'})")
+    ranges = {"wheel_base": 100, "wheel_speed": 1000, "wheel_accel": 1e5, "lookahead": 100, "time_constant": 10,
+              "max_speed": 1000}
+    got = {k: r.number(v.get(k, getattr(d, k)), f"sim.drive.{k}", gt=0, le=high) for k, high in ranges.items()}
+    got["kp_v"] = r.number(v.get("kp_v", d.kp_v), "sim.drive.kp_v", ge=0, le=1000)
+    return DriveParams(model=model, **got)
 
 
 def _read_render(r: _Reader, value) -> RenderParams:

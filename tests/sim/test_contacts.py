@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 from planner.problem import Circle, Polygon, Problem
 from sim.execute.contacts import PymunkWitness, static_clearances
 from sim.execute.monitor import SERIES_CAP, GapMonitor
-from sim.scenario.params import SimParams
 from sim.execute.world import OBSTACLE, ROBOT, WALL, build_world, convex_pieces
+from sim.scenario.params import SimParams
 
 U = np.array([[3.0, 3.0], [7.0, 3.0], [7.0, 7.0], [5.8, 7.0], [5.8, 4.0], [4.2, 4.0], [4.2, 7.0], [3.0, 7.0]])
 L = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 1.0], [1.0, 1.0], [1.0, 3.0], [0.0, 3.0]])

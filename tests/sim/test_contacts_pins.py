@@ -22,8 +22,8 @@ from sim.execute.contacts import (
     static_clearances,
 )
 from sim.execute.monitor import SERIES_CAP, GapMonitor
-from sim.scenario.params import SimParams
 from sim.execute.world import OBSTACLE, ROBOT, WALL, build_world
+from sim.scenario.params import SimParams
 
 
 class _Space:

@@ -192,7 +192,8 @@ def test_crossing_robots_collide():
     _assert_seen(report, "robot-robot", 0, 1, _time_at(plan, 0, s))
     assert report.min_clearance < 0
     d = report.to_dict()
-    assert d["contacts"] == len(report.contacts) and d["contact_list"]
+    # one touch, seen by both witnesses: one contact event, two sightings listed
+    assert d["contacts"] == len(report.events) == 1 and len(d["contact_list"]) == len(report.contacts) == 2
 
 
 def test_robots_driven_through_obstacles_collide():

@@ -16,10 +16,13 @@ import pytest
 from planner.plan import Plan
 from planner.problem import Problem
 from sim.execute.contacts import Contact
-from sim.scenario.params import Failure, Impulse, Noise, SimParams
-from sim.execute.outcome import SimReport, assemble as build_report, filled as _filled, reached as _reached
+from sim.execute.outcome import SimReport
+from sim.execute.outcome import assemble as build_report
+from sim.execute.outcome import filled as _filled
+from sim.execute.outcome import reached as _reached
 from sim.execute.physics import _check, execute
 from sim.execute.realism import Disturbance, phase_margin
+from sim.scenario.params import Failure, Impulse, Noise, SimParams
 
 
 def _report(**kw):
@@ -47,7 +50,7 @@ def test_a_clean_run_says_so():
 def test_contacts_make_the_run_fail_and_lead_the_verdict():
     r = _report(contacts=(C1, C2))
     assert not r.ok and r.first_contact is C1
-    assert r.verdict == "2 contacts, the first: robots 0 and 1 touch at t = 1.500 s, depth 0.02 (pymunk)"
+    assert r.verdict == "2 contacts, the first: robots 0 and 1 touch at t = 1.500 s, depth 0.02 (seen by pymunk)"
 
 
 def test_a_stopped_run_fails_and_says_why():
@@ -107,7 +110,9 @@ def test_report_dict():
                 min_clearance_time=float("nan"))
     d = r.to_dict()
     assert d["ok"] is False
-    assert (d["contacts"], d["contacts_pymunk"], d["contacts_monitor"]) == (3, 2, 1)
+    # contacts counts events (C1 twice at one time is one touch), the witnesses' counts are sightings
+    assert (d["contacts"], d["contacts_pymunk"], d["contacts_monitor"]) == (2, 2, 1)
+    assert [e["witnesses"] for e in d["contact_events"]] == [["pymunk"], ["monitor"]]
     assert d["min_clearance"] == -0.02 and d["min_clearance_time"] is None
     assert d["min_clearance_kind"] == "robot-robot" and d["min_clearance_pair"] == [0, 1]
     assert d["max_tracking_error"] == 0.01 and d["reached"] is True and d["final_error"] == 0.001
@@ -133,14 +138,16 @@ def test_report_dict():
 
 
 def test_long_lists_are_cut_at_a_thousand():
-    many = tuple(Contact(0.001 * k, "robot-wall", 0, -1, 0.1, "monitor") for k in range(1001))
+    many = tuple(Contact(0.2 * k, "robot-wall", 0, -1, 0.1, "monitor") for k in range(1001))  # 1001 events
     pushes = tuple(Disturbance("push", 0, 0.01 * k, (1.0, 0.0)) for k in range(1001))
     d = _report(contacts=many, disturbances=pushes).to_dict()
     assert len(d["contact_list"]) == 1000 and d["contact_list_truncated"] is True
     assert len(d["disturbances"]["list"]) == 1000 and d["disturbances"]["list_truncated"] is True
     assert d["contacts"] == 1001 and d["disturbances"]["pushes"] == 1001
+    assert len(d["contact_events"]) == 1000 and d["contact_events_truncated"] is True
     d = _report(contacts=many[:1000], disturbances=pushes[:1000]).to_dict()
     assert "contact_list_truncated" not in d and "list_truncated" not in d["disturbances"]
+    assert "contact_events_truncated" not in d
 
 
 def test_series_needs_both_arrays():
@@ -344,7 +351,8 @@ def test_the_report_sorts_contacts_pymunk_first_at_equal_times():
 
 def test_the_report_carries_the_monitor_and_the_worst_tracking():
     r = _built(stopped="why", replans=("one",), failed=(1,))
-    assert (r.min_clearance, r.min_clearance_time, r.min_clearance_kind, r.min_clearance_pair) == (0.25, 0.5, "robot-wall", (1, -1))
+    got = (r.min_clearance, r.min_clearance_time, r.min_clearance_kind, r.min_clearance_pair)
+    assert got == (0.25, 0.5, "robot-wall", (1, -1))
     assert (r.max_tracking_error, r.max_tracking_error_time, r.max_tracking_error_robot) == (0.3, 0.5, 0)
     assert r.stopped == "why" and r.replans == ("one",) and r.failed == (1,)
     # every robot failed: no tracking error at all

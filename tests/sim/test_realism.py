@@ -15,18 +15,18 @@ from planner.plan import Plan
 from planner.problem import Problem
 from sim.execute.physics import _execute, execute
 from sim.execute.real import execute_real as _execute_real
-from sim.scenario.params import Failure, Impulse, Noise, Pushes, SimParams
 from sim.execute.realism import (
-    G,
     ControlClock,
     DelayLine,
     Events,
+    G,
     Resistance,
     Sensor,
     real_masses,
     resistive_forces,
     streams,
 )
+from sim.scenario.params import Failure, Impulse, Noise, Pushes, Sensing, SimParams
 
 R = 0.5
 MARGIN = 0.1
@@ -54,7 +54,7 @@ def test_streams_are_independent_of_draws_and_reproducible():
     b = np.random.default_rng(7)
     b.random(1000)  # used by something else first (the planner, say)
     sa, sb = streams(a), streams(b)
-    for key in ("masses", "noise", "pushes", "replan"):
+    for key in ("masses", "noise", "pushes", "replan", "sensing"):
         assert np.array_equal(sa[key].random(5), sb[key].random(5))
     assert not np.array_equal(streams(np.random.default_rng(7))["noise"].random(5),
                               streams(np.random.default_rng(8))["noise"].random(5))
@@ -263,7 +263,8 @@ def test_noise_moves_the_measurement_not_the_body():
     still = execute(problem, plan, SimParams(kp=0.0, kd=0.0, noise=Noise(0.1, 0.1), settle_time=2.0),
                     np.random.default_rng(0))
     assert np.all(still.positions == plan.start)  # no controller reaction: never moved
-    driven = execute(problem, plan, SimParams(noise=Noise(0.02, 0.0), settle_time=2.0, kp=50.0, kd=14.0),
+    driven = execute(problem, plan, SimParams(noise=Noise(0.02, 0.0), settle_time=2.0, kp=50.0, kd=14.0,
+                                              sensing=Sensing(estimator="oracle")),  # measured true velocity
                      np.random.default_rng(0))
     moved = np.linalg.norm(driven.positions - plan.start, axis=2)
     # The controller reacts to noisy measurements, so the bodies move, far

@@ -5,6 +5,7 @@ same run, same seed, where it does happen.
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,8 +13,8 @@ import pytest
 from planner import Circle, PlannerParams, Problem, plan
 from planner.plan import Plan
 from sim.execute.physics import execute
-from sim.scenario.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
 from sim.execute.recovery import RecoveryFailed, StopReference, drop_targets, parking, separation_step
+from sim.scenario.params import Failure, Impulse, Noise, Pushes, Recovery, Sensing, SimParams
 
 R = 0.5
 MARGIN = 0.1
@@ -106,7 +107,7 @@ def test_a_strong_push_into_a_neighbour_is_seen_by_both_witnesses():
     assert not report.ok and report.first_contact == report.contacts[0]
     assert report.min_clearance < 0
     d = report.to_dict()
-    assert d["first_contact"]["witness"] == "pymunk" and d["contacts"] == len(report.contacts)
+    assert d["first_contact"]["witness"] == "pymunk" and d["contacts"] == len(report.events) == 1  # both saw one touch
     assert "robots 0 and 1 touch" in d["verdict"]
     # Negative control: the same run without the push.
     quiet = execute(problem, p, SimParams(settle_time=2.0, noise=Noise(0.0, 0.0)), np.random.default_rng(0))
@@ -163,7 +164,10 @@ def test_a_failed_robot_causes_a_contact_without_recovery_and_none_with_it():
     params = SimParams(failures=fail, recovery=RECOVER)
     with_ = execute(problem, p, params, np.random.default_rng(5), planner_params=PlannerParams())
     assert with_.contacts == (), with_.verdict
-    assert with_.ok and with_.reached
+    # A target stays empty: the default rule (accept: targets) fails the run, "working" passes it.
+    assert not with_.ok and with_.reached and with_.targets_working == 1
+    assert execute(problem, p, replace(params, accept="working"), np.random.default_rng(5),
+                   planner_params=PlannerParams()).ok
     assert with_.failed == (0,)
     rp = with_.replans[0]
     assert rp.reason == "robot 0 failed" and rp.found
@@ -175,7 +179,8 @@ def test_a_failed_robot_causes_a_contact_without_recovery_and_none_with_it():
     assert np.linalg.norm(final[0] - [5.0, 5.0]) < 0.05  # braked where it failed
     d = with_.to_dict()
     assert d["failed"] == [0] and d["replans"][0]["reason"] == "robot 0 failed"
-    assert "robot 0 failed" in d["verdict"] and d["verdict"].endswith("; 1 replan")
+    assert "robot 0 failed" in d["verdict"] and d["accept"] == "targets"
+    assert d["verdict"].endswith("; 1 replan; accept: targets (1 of 2 targets hold a working robot)")
 
 
 def _blocking_case():
@@ -187,7 +192,7 @@ def _blocking_case():
 
 def test_a_robot_parks_when_a_failed_one_blocks_two_targets():
     problem, p = _blocking_case()
-    params = SimParams(failures=(Failure(0, p.durations[0] / 2),), recovery=RECOVER)
+    params = SimParams(failures=(Failure(0, p.durations[0] / 2),), recovery=RECOVER, accept="working")
     report = execute(problem, p, params, np.random.default_rng(0), planner_params=PlannerParams())
     rp = report.replans[0]
     assert rp.found and rp.dropped_targets == (1, 2) and len(rp.parked) == 1
@@ -211,7 +216,7 @@ def test_a_replan_that_cannot_go_on_ends_the_run_with_the_reason():
     problem = Problem(20.0, 20.0, wall, R, MARGIN, w[0], w[-1])
     p = Plan.from_waypoints(w, R, MARGIN, problem.max_speed, problem.max_accel)
     fails = Failure(0, p.durations[0] / 2)  # at x = 10, in the door
-    params = SimParams(failures=(fails,), recovery=Recovery(replan=True, time_limit=1.0))
+    params = SimParams(failures=(fails,), recovery=Recovery(replan=True, replan_time_limit=1.0))
     report = execute(problem, p, params, np.random.default_rng(0), planner_params=PlannerParams())
     assert report.stopped and "no plan" in report.stopped, report.verdict
     assert not report.ok and not report.reached and report.contacts == ()
@@ -249,7 +254,8 @@ def _batch(seeds):
     for seed in seeds:
         problem, p, failure, rng = _random_case(seed)
         base = dict(failures=(failure,), pushes=Pushes(0.1, 0.3), noise=Noise(0.005, 0.005),
-                    mass_error=0.1, control_rate=100.0, latency=0.01)
+                    mass_error=0.1, control_rate=100.0, latency=0.01, accept="working",
+                    sensing=Sensing(estimator="oracle"))  # the pins of the measured-state recovery
         without = execute(problem, p, SimParams(**base), np.random.default_rng(seed))
         with_ = execute(problem, p, SimParams(**base, recovery=RECOVER), np.random.default_rng(seed),
                         planner_params=PlannerParams())
@@ -258,7 +264,7 @@ def _batch(seeds):
 
 
 def _check_batch(results):
-    for seed, without, with_ in results:
+    for seed, _without, with_ in results:
         assert with_.contacts == (), (seed, with_.verdict)
         assert with_.replans and with_.replans[0].reason.endswith("failed"), seed
         assert with_.ok or with_.stopped, (seed, with_.verdict)

@@ -7,8 +7,8 @@ import textwrap
 import pytest
 
 from sim.cli import main
-from sim.scenario.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
 from sim.scenario import ScenarioError, read_scenario
+from sim.scenario.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
 
 HEAD = """
 name: case

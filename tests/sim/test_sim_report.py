@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.runner import run_scenario
 from sim.execute.series import SERIES_KEYS
+from sim.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -73,7 +73,9 @@ def test_report_says_what_happened(tmp_path):
     kinds = [x["kind"] for x in d["list"]]
     assert kinds.count("impulse") == 1 and kinds.count("failure") == 1 and kinds.count("push") == d["pushes"]
     assert sim["failed"] == [2] and sim["reached_robots"][2] is False
-    assert any(r["reason"] == "robot 2 failed" for r in sim["replans"])
+    # noise.position > 0: a filter estimates the state; the failure is told 0.5 s late, to the
+    # replan the failed robot's estimated deviation has already started
+    assert any(r["reason"].endswith("robot 2 failed") and 2 in r["failed"] for r in sim["replans"])
     for r in sim["replans"]:
         assert r["planned_at"] > r["time"] and r["found"] and r["planning_time_s"] >= 0
     lo, hi = sim["mass_range"]

@@ -29,9 +29,9 @@ import pytest
 from planner.plan import Plan, min_jerk
 from planner.problem import Problem
 from sim.execute.physics import execute
-from sim.scenario.params import SimParams
 from sim.runner import run_scenario
 from sim.scenario import ScenarioError, build_problem, read_scenario
+from sim.scenario.params import SimParams
 
 ROOT = Path(__file__).resolve().parents[2]
 _SCRIPT = Path(sys.executable).with_name("swarmform")
