@@ -440,8 +440,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
         print(markdown_table(COLUMNS, rows))
     if args.time_limits or args.cases is None:
         limits = limit_rows(seeds=1 if args.quick else LIMIT_SEEDS)
-        print(f"\n## time_limit honoured (returns within 1.1 time_limit + 0.5 s; seeds 0..N-1, "
-              f"wall time around plan())\n")
+        print("\n## time_limit honoured (returns within 1.1 time_limit + 0.5 s; seeds 0..N-1, "
+              "wall time around plan())\n")
         print(markdown_table(LIMIT_COLUMNS, limits))
         rows = rows + limits
     return rows

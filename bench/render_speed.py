@@ -30,8 +30,8 @@ import numpy as np
 
 from planner.problem import Circle, Polygon, Problem
 from sim.output.media import has_mp4, write_gif, write_mp4, write_video
-from sim.scenario.params import RenderParams
 from sim.output.render import playback_speedup, render_frames
+from sim.scenario.params import RenderParams
 
 
 @dataclass(frozen=True)
@@ -144,7 +144,8 @@ def main(argv: list[str] | None = None) -> None:
         for m in args.robots:
             problem, t, pos, contacts = _recording(m)
             frames, t_render = _timed(
-                lambda: list(render_frames(problem, t, pos, contacts, params, title=f"bench m={m}"))
+                lambda problem=problem, t=t, pos=pos, contacts=contacts, m=m: list(
+                    render_frames(problem, t, pos, contacts, params, title=f"bench m={m}"))
             )  # held in memory here only to time drawing and encoding apart
             n = len(frames)
             per = 300.0 / n

@@ -38,8 +38,15 @@ import numpy as np
 from planner import NoPlanFound, PlannerParams, plan
 from planner.bounds import lower_bounds
 
-from ._common import (in_fresh_process, machine_info, markdown_table, percentile, scaled_problem, side_for,
-                      warm_up_planner)
+from ._common import (
+    in_fresh_process,
+    machine_info,
+    markdown_table,
+    percentile,
+    scaled_problem,
+    side_for,
+    warm_up_planner,
+)
 
 __all__ = ["COLUMNS", "fit_exponent", "format_report", "main", "run_size", "scaled_problem", "side_for"]
 

@@ -9,7 +9,7 @@ from importlib import import_module
 __all__ = ["lazy_exports"]
 
 
-def lazy_exports(package: str, where: Mapping[str, str]) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
+def lazy_exports(package: str, where: Mapping[str, str | None]) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
     """A package's ``__getattr__`` and ``__dir__``: ``where`` maps each name to its submodule
     (``None``: the name is a subpackage, imported whole)."""
 

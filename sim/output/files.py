@@ -28,8 +28,8 @@ import os
 import re
 import shutil
 import signal
-import threading
 import stat
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 

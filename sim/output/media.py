@@ -24,6 +24,7 @@ import secrets
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -148,7 +149,7 @@ class _Mp4Writer:
 
     def __init__(self, path: Path, fps: float):
         self.path, self.fps = path, fps
-        self._gen = None
+        self._gen: Any = None  # ffmpeg's frame generator, once started
 
     def add(self, frame: np.ndarray) -> None:
         if self._gen is None:
@@ -255,7 +256,7 @@ def _write(targets: dict[str, Path], frames, fps: float, colours, progress) -> N
     """Stream ``frames`` into every target format at once, each file atomically."""
     total = len(frames) if isinstance(frames, (Sequence, np.ndarray)) else None
     with ExitStack() as stack:
-        writers = []
+        writers: list[Any] = []
         if "gif" in targets:
             palette, stream = _palette_and_stream(frames, colours)
             tmp = stack.enter_context(atomic_path(targets["gif"]))

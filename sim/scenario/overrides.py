@@ -29,9 +29,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from .yamlfile import YamlRefused, load_yaml
-
 from .model import ScenarioError
+from .yamlfile import YamlRefused, load_yaml
 
 __all__ = ["Override", "OverrideError", "apply_overrides", "blame", "combinations", "parse_set"]
 

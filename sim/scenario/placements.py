@@ -24,7 +24,16 @@ import numpy as np
 
 from planner.area import area_points, ink_points
 from planner.formations import DEFAULT_COUNTS, formation_box, formation_shape
-from planner.strokes import SPACING_SLACK, Stroke, bounds, count_at_spacing, drawing, extent, scaled_shape, strokes_shape
+from planner.strokes import (
+    SPACING_SLACK,
+    Stroke,
+    bounds,
+    count_at_spacing,
+    drawing,
+    extent,
+    scaled_shape,
+    strokes_shape,
+)
 
 __all__ = [
     "AREA_SPACING",

@@ -86,8 +86,8 @@ def _check_events(text: str) -> None:
         if tag is not None and tag not in _CORE_TAGS:
             raise YamlRefused(
                 _where(ev.start_mark),
-                f"the tag {echo(tag.replace('tag:yaml.org,2002:', '!!'), 50)[7:]} is not allowed (only YAML's own str, int, float, bool, "
-                "null, seq and map)",
+                f"the tag {echo(tag.replace('tag:yaml.org,2002:', '!!'), 50)[7:]} is not allowed "
+                "(only YAML's own str, int, float, bool, null, seq and map)",
             )
         if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
             depth += 1

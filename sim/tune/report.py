@@ -24,8 +24,19 @@ from .plots import contact_plot, heatmap
 from .results import SUMMARY_MARK, read_results
 from .robustness import robustness_blocks, robustness_cells
 from .spec import TuneError
-from .summary import (_groups, _info, _sort_key, latest, num_cell, paper_blocks, scenario_blocks, seeds_text,
-                      settings_of, settings_text, value_text)
+from .summary import (
+    _groups,
+    _info,
+    _sort_key,
+    latest,
+    num_cell,
+    paper_blocks,
+    scenario_blocks,
+    seeds_text,
+    settings_of,
+    settings_text,
+    value_text,
+)
 
 __all__ = ["MAX_PAGE_RUNS", "write_summary"]
 

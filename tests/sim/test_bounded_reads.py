@@ -105,7 +105,8 @@ def test_a_bad_first_line_is_refused_after_reading_one_chunk(tmp_path, marker, c
         reads.clear()
         argv = ["-o", path, FIG2, *ONE_RUN] if flag == "-o" else ["--summarize", path]
         code, _, err = _tune(argv, capsys)
-        _one_line_refusal(code, err, "--output: " if flag == "-o" else "--summarize: ", "notes.jsonl", "line 1 is not a result row")
+        _one_line_refusal(code, err, "--output: " if flag == "-o" else "--summarize: ", "notes.jsonl",
+                          "line 1 is not a result row")
         assert 1 <= len(reads) <= 2 and sum(reads) <= 2 << 20  # a chunk or two, not 200 MiB
     assert not marker.exists()
     assert _state(path) == before

@@ -86,12 +86,12 @@ def _doc(field: str, value) -> dict:
     elif field == "obstacles[k].random.seed":
         doc["obstacles"] = [{"random": {"seed": value, "size": [0.1, 0.2]}}]
     else:
-        section, _, key = field.rpartition(".")
-        if section:
-            doc.setdefault(section, {})
-            doc[section] = dict(doc[section], **{key: value})
-        else:
-            doc[key] = value
+        *sections, key = field.split(".")
+        node = doc
+        for section in sections:  # nested sections (sim.sensing.rate) as mappings
+            node[section] = dict(node.get(section) or {})
+            node = node[section]
+        node[key] = value
     return doc
 
 

@@ -12,7 +12,18 @@ import stat
 
 import pytest
 
-from planner.inputfile import ECHO_LIMIT, HugeInt, UnreadableFile, _check_mode, _os_reason, _size, echo, echo_key, echo_path, read_text
+from planner.inputfile import (
+    ECHO_LIMIT,
+    HugeInt,
+    UnreadableFile,
+    _check_mode,
+    _os_reason,
+    _size,
+    echo,
+    echo_key,
+    echo_path,
+    read_text,
+)
 
 
 def test_huge_int_counts_digits_and_sign():

@@ -23,10 +23,10 @@ import pytest
 from planner import NoPlanFound, Plan, PlannerParams, check_plan, plan
 from planner.validate import PlanInvalid
 from sim.execute.legs import plan_legs
-from sim.scenario.params import RenderParams
 from sim.output.render import TARGET_MARK, Canvas, render_frames
 from sim.runner import run_scenario
 from sim.scenario import build_legs, read_scenario
+from sim.scenario.params import RenderParams
 
 ROOT = Path(__file__).resolve().parents[2]
 

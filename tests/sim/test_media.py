@@ -218,7 +218,7 @@ def test_write_png_is_atomic(tmp_path):
     img = _frames(n=1)[0]
     path = write_png(tmp_path / "p.png", img)
     assert np.array_equal(iio.imread(path), img)
-    with pytest.raises(Exception):
+    with pytest.raises(TypeError):
         write_png(path, np.zeros((2, 2, 7, 3)))
     assert np.array_equal(iio.imread(path), img)
     assert _leftovers(tmp_path, {"p.png"}) == []
@@ -226,8 +226,8 @@ def test_write_png_is_atomic(tmp_path):
 
 def test_rendered_run_to_gif(tmp_path):
     from planner.problem import Problem
-    from sim.scenario.params import RenderParams
     from sim.output.render import render_frames
+    from sim.scenario.params import RenderParams
 
     p = Problem(6.0, 4.0, (), 0.3, 0.05, [[1, 1], [2, 1]], [[4, 3], [5, 3]])
     t = np.linspace(0.0, 4.0, 241)
@@ -342,8 +342,8 @@ def test_write_video_reports_progress_for_a_sequence(tmp_path):
 
 def test_rendered_frames_stream_into_the_same_gif_as_a_list(tmp_path):
     from planner.problem import Problem
-    from sim.scenario.params import RenderParams
     from sim.output.render import render_frames
+    from sim.scenario.params import RenderParams
 
     p = Problem(6.0, 4.0, (), 0.3, 0.05, [[1, 1], [2, 1]], [[4, 3], [5, 3]])
     t = np.linspace(0.0, 4.0, 241)

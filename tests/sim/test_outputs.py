@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -24,11 +24,11 @@ from pathlib import Path
 
 import pytest
 
-from sim.output import media
-from sim.output import files as outputs
 from sim.cli import main
-from sim.output.media import atomic_path, has_mp4
+from sim.output import files as outputs
+from sim.output import media
 from sim.output.files import RUN_OUTPUTS, OutputPathError, OutputSet, check_out_dir, check_out_file, remove_stale
+from sim.output.media import atomic_path, has_mp4
 from sim.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[2]

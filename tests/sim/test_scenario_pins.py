@@ -13,6 +13,7 @@ import pytest
 from sim.scenario import ScenarioError
 from sim.scenario.fields import _numeric_text_hint, _Reader, _span
 
+
 class _R:
     """A fresh reader per use (a reader made at import would escape mutation testing)."""
 

@@ -24,9 +24,9 @@ from scipy.spatial.distance import pdist
 from planner.area import area_points
 from planner.skeleton import mask_strokes
 from planner.strokes import drawing, stroke_points
+from sim.scenario import ScenarioError, build_legs, build_problem, read_scenario
 from sim.scenario.glyphs import GlyphError, render_text
 from sim.scenario.placements import FIT, STROKE_SPACING, default_count, formation_side, make_shape
-from sim.scenario import ScenarioError, build_legs, build_problem, read_scenario
 
 LETTERS = "ABCDEFHKMNOPRSTUVWXZ"
 GRID = 40  # letters compared on a GRID x GRID frame

@@ -28,8 +28,8 @@ import sim.tune.spec as tune_spec
 from planner import NoPlanFound, PlanStats
 from sim.cli import main
 from sim.scenario import read_scenario
-from sim.tune.results import row_key
 from sim.tune import VOLATILE_FIELDS, grid, paper_table, read_results, summarize, sweep
+from sim.tune.results import row_key
 
 ROOT = Path(__file__).resolve().parents[2]
 FIG2 = ROOT / "scenarios" / "paper" / "fig2-random-to-C.yaml"

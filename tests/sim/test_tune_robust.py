@@ -12,13 +12,22 @@ import pytest
 
 import sim.scenario.overrides
 from sim.cli import main
-from sim.scenario.overrides import OverrideError, apply_overrides, combinations, parse_set
 from sim.scenario import ScenarioError, read_scenario
-from sim.tune.results import SUMMARY_MARK
-from sim.tune import (margin_needed, read_results, read_variants, robustness_blocks, robustness_cells, grid, sweep,
-                      wilson_interval, write_summary)
+from sim.scenario.overrides import OverrideError, apply_overrides, combinations, parse_set
+from sim.tune import (
+    grid,
+    margin_needed,
+    read_results,
+    read_variants,
+    robustness_blocks,
+    robustness_cells,
+    sweep,
+    wilson_interval,
+    write_summary,
+)
 from sim.tune.blocks import markdown
 from sim.tune.plots import contact_plot
+from sim.tune.results import SUMMARY_MARK
 
 ROOT = Path(__file__).resolve().parents[2]
 FIG2 = ROOT / "scenarios" / "paper" / "fig2-random-to-C.yaml"

@@ -20,8 +20,17 @@ import pytest
 import sim.tune.spec as tune_spec
 from sim.cli import main
 from sim.scenario import read_scenario
-from sim.tune import (BUILD_ALLOWANCE_S, PHYSICS_ALLOWANCE_S, TIMEOUT, WORKER_DIED, grid, read_results, summarize,
-                      sweep, watchdog_s)
+from sim.tune import (
+    BUILD_ALLOWANCE_S,
+    PHYSICS_ALLOWANCE_S,
+    TIMEOUT,
+    WORKER_DIED,
+    grid,
+    read_results,
+    summarize,
+    sweep,
+    watchdog_s,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 FIG2 = ROOT / "scenarios" / "paper" / "fig2-random-to-C.yaml"
