@@ -27,7 +27,7 @@ COMMANDS = {
     "python -c pass": [sys.executable, "-c", "pass"],
     "swarmform --help": ["--help"],
     "swarmform --version": ["--version"],
-    **{f"swarmform {c} --help": [c, "--help"] for c in ("formations", "show", "plan", "run", "tune")},
+    **{f"swarmform {c} --help": [c, "--help"] for c in ("formations", "show", "plan", "run", "check", "export", "tune")},
 }
 
 

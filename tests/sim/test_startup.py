@@ -39,7 +39,7 @@ def _heavy_after(argv: list[str], extra: str = "") -> list[str]:
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["--version"]] + [
-    [c, "--help"] for c in ("formations", "show", "plan", "run", "tune")])
+    [c, "--help"] for c in ("formations", "show", "plan", "run", "check", "export", "tune")])
 def test_help_and_version_import_nothing_heavy(argv):
     assert _heavy_after(argv) == []
 
