@@ -20,10 +20,12 @@ robot 0 failing halfway; gains lowered to kp = 50, kd = 14 so that the
 loop stays stable with the latency).  Recovery stays off: replanning
 measures the planner, not the simulator.
 
-Then the drive models (:mod:`sim.execute.drive`) run, with their default
-settings and nothing else realistic, at ``--drive-robots`` (100 and 1000):
-``differential`` (wheels, no lateral slip) and ``velocity`` (first-order
-velocity tracking); both use the realistic loop.
+The disturbed robots' noise turns the state estimator on (the controller sees a
+Kalman filter's estimate, :mod:`sim.execute.estimate`).  Then, at ``--drive-robots``
+(100 and 1000), the drive models (:mod:`sim.execute.drive`) run with their default
+settings and nothing else realistic: ``differential`` (wheels, no lateral slip) and
+``velocity`` (first-order velocity tracking); and ``estimated`` (:data:`ESTIMATED`):
+estimated state alone.  All use the realistic loop.
 """
 
 from __future__ import annotations
@@ -41,12 +43,17 @@ from planner.plan import Plan
 from planner.problem import Circle, Polygon, Problem
 from planner.validate import check_plan
 from sim.execute.physics import execute
-from sim.scenario.params import DriveParams, Failure, Noise, Pushes, SimParams
+from sim.scenario.params import DriveParams, Failure, Noise, Pushes, Sensing, SimParams
 
-__all__ = ["DISTURBED", "cell_problem", "disturbed_params", "main"]
+__all__ = ["DISTURBED", "ESTIMATED", "cell_problem", "disturbed_params", "main"]
 
 DISTURBED = dict(kp=50.0, kd=14.0, force_limit=20.0, control_rate=50.0, latency=0.04,
                  noise=Noise(0.02, 0.02), mass_error=0.1, friction=0.2, pushes=Pushes(0.05, 0.5))
+
+
+ESTIMATED = SimParams(noise=Noise(0.02, 0.0), sensing=Sensing(dropout=0.05, latency_jitter=0.005, bias_drift=0.001))
+"""Estimated state alone: the controller sees a constant-velocity Kalman filter's estimate of
+position measurements with noise 0.02, 5 % dropped, 5 ms jitter and a slowly drifting bias."""
 
 
 def disturbed_params(makespan: float) -> SimParams:
@@ -151,6 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             labelled = tuple((model, SimParams(drive=DriveParams(model=model)))
                              for model in ("differential", "velocity"))
+            labelled += (("estimated", ESTIMATED),)
         for label, run_params in labelled:
             cpu0 = time.process_time()
             report = execute(problem, plan, run_params, np.random.default_rng(args.seed))
