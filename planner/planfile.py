@@ -54,7 +54,7 @@ _STAT_TYPES = {
     "found": (bool,), "planning_time_s": (int, float), "g": (int,), "q": (int,), "graphs": (int,),
     "connections": (int,), "steps": (int,), "makespan_s": (int, float), "path_length": (int, float),
     "min_clearance": (int, float), "makespan_lower_bound_s": (int, float),
-    "path_length_lower_bound": (int, float),
+    "path_length_lower_bound": (int, float), "makespan_lower_bound_geo_s": (int, float),
 }
 
 
@@ -161,7 +161,7 @@ def _stats(s, source: str) -> PlanStats:
 
     if not isinstance(s, dict):
         _fail(source, "stats", f"must be an object, got {echo(s)}")
-    values = {}
+    values: dict = {}
     for key, types in _STAT_TYPES.items():
         if key not in s:
             continue
@@ -170,7 +170,7 @@ def _stats(s, source: str) -> PlanStats:
             values[key] = float("nan")
             continue
         ok = type(v) in types or (types == (int, float) and type(v) in (int, float))
-        if not ok or (type(v) in (int, float) and not type(v) is bool and not abs(v) <= 1e300):
+        if not ok or (type(v) in (int, float) and type(v) is not bool and not abs(v) <= 1e300):
             _fail(source, f"stats.{key}", f"must be {'a boolean' if types == (bool,) else 'a number'}, got {echo(v)}")
         values[key] = v
     return PlanStats(**values, extra={k: v for k, v in s.items() if k not in _STAT_TYPES and k != "extra"})

@@ -16,7 +16,9 @@ class PlanStats:
 
     ``min_clearance`` is the exact smallest gap between two disc boundaries,
     or between a disc and an obstacle or wall, over the whole plan (a plan
-    is valid when it is at least the margin).
+    is valid when it is at least the margin).  ``makespan_lower_bound_s`` is
+    over straight-line distances, ``makespan_lower_bound_geo_s`` over shortest
+    paths around the obstacles (:mod:`planner.geobound`; NaN when not computed).
     """
 
     found: bool = False
@@ -31,6 +33,7 @@ class PlanStats:
     min_clearance: float = float("nan")
     makespan_lower_bound_s: float = float("nan")
     path_length_lower_bound: float = float("nan")
+    makespan_lower_bound_geo_s: float = float("nan")  # over shortest paths around obstacles
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:

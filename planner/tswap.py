@@ -34,14 +34,19 @@ def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | 
 
 
 def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float,
-          max_steps: int | None = None) -> list[np.ndarray] | None:
+          max_steps: int | None = None, turns: bool = True, rng=None) -> list[np.ndarray] | None:
     """Time steps (vertex of every robot after each) from ``start_v`` to the set ``goal_v``.
 
     TSWAP (see :mod:`planner.lattice`), synchronous: per time step, first
     target swaps (a robot whose next vertex holds a robot resting on its
     own target takes that target, and gives its own) and rotations of
     targets along waiting cycles, then every robot not on its target moves
-    to its next vertex when that is free at that moment.  ``None`` when
+    to its next vertex when that is free at that moment.  With ``turns``
+    false, a robot enters a vertex vacated in the same step only when the
+    robot that left it moves in the same direction, and prefers going straight
+    on among its shortest moves (on a grid finer than
+    ``sqrt(2)`` separations, following with a turn brings two robots to
+    ``spacing / sqrt(2)``; see :mod:`planner.gridstage`).  ``None`` when
     the deadline or the step cap comes first, or a target is unreachable.
     """
     from scipy.optimize import linear_sum_assignment
@@ -69,6 +74,7 @@ def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float
     occ = occ.tolist()
     goal_vert = goals.tolist()
     frows = [field[g] for g in range(m)]
+    heading = [-1] * m  # neighbour slot of each robot's last move
 
     def nexts(i: int) -> list[int]:
         """Neighbours one step closer to robot i's target, the most direct first."""
@@ -80,11 +86,19 @@ def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float
         if len(cand) > 1:
             gx, gy = gpts[g]
             cand.sort(key=lambda u: (pts[u][0] - gx) ** 2 + (pts[u][1] - gy) ** 2)
+            if not turns and heading[i] >= 0:  # straight on first: fewer turns to wait for
+                ahead = nbr[v][heading[i]]
+                if ahead in cand:
+                    cand.remove(ahead)
+                    cand.insert(0, ahead)
         return cand
 
     if max_steps is None:
         max_steps = int(field.max(initial=0)) * 4 + 4 * m + 100
     order = sorted(range(m), key=lambda i: -float(cost[i, goal_of[i]]))
+    if rng is not None:  # another try: ties among equally far robots broken at random
+        noise = rng.random(m)
+        order = sorted(range(m), key=lambda i: (-float(cost[i, goal_of[i]]), noise[i]))
     out = []
     for _ in range(max_steps):
         if time.perf_counter() > deadline:
@@ -120,11 +134,17 @@ def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float
         if done:
             return out
         moved = False
+        left = {}  # vertex vacated this step -> direction (neighbour slot) of the robot that left
         for i in order:
             if where[i] == goal_vert[goal_of[i]]:
                 continue
             for u in nexts(i):
                 if occ[u] < 0:
+                    k = nbr[where[i]].index(u)
+                    if not turns and left.get(u, k) != k:
+                        continue  # following with a turn: not on this grid
+                    left[where[i]] = k
+                    heading[i] = k
                     occ[where[i]] = -1
                     occ[u] = i
                     where[i] = u

@@ -1,0 +1,227 @@
+"""The grid stage: worlds whose starts and targets sit on one square grid.
+
+Maps of cells (MovingAI benchmarks, occupancy grids) put every start and
+target at a cell centre: on a grid ``offset + c * integers`` with
+``separation <= c``, often below ``sqrt(2) * separation`` (cells of 2.4 for
+robots of radius 1 and margin 0.1: separation 2.1), too fine for the
+lattice stage's lattice (:mod:`planner.lattice`) but the natural graph.
+
+1. **Detection** (:func:`detect_grid`): the spacing is the smallest gap
+   between distinct coordinates of the starts and targets (or an integer
+   fraction of it no smaller than the separation), and every coordinate
+   must be ``offset + c * integer`` within ``1e-9`` (relative to the size
+   of the workspace).
+2. **Graph** (:func:`build_grid`): the grid points with exact clearance at
+   least ``radius + margin``, and the 4-neighbour segments that are exactly
+   clear.
+3. **Routing**: TSWAP (:func:`planner.tswap.tswap`; Okumura and Defago,
+   AIJ 2023), synchronous: each time step robots move to distinct
+   neighbour vertices, no two swap, and a robot enters a vertex vacated in
+   the same step only if the robot leaving it moves in the same direction.
+   That rule is what the spacing needs.  In units of ``c`` the relative
+   position of two robots moves on a segment between two non-zero integer
+   vectors, by a difference of moves in ``{0, unit, unit + perpendicular
+   unit, 2 unit}``: a unit or zero difference keeps it at least 1 (the
+   segment lies on a grid line away from the origin, or along an axis
+   from 1 to 2); a difference of two opposite units passes the origin only
+   in a swap; a diagonal difference comes within ``1 / sqrt(2)`` of the
+   origin only between two unit vectors, i.e. when one robot enters the
+   vertex the other leaves in a perpendicular direction: following with a
+   turn, ``c / sqrt(2) < separation``.  Every step is still checked with
+   the exact closest-approach kernel over the pairs that can meet
+   (:func:`step_separated`), and the stage gives up on a step that fails.
+4. **Steps**: each time step is one plan step; consecutive steps are then
+   merged where the straight joined step is exactly clear
+   (:func:`planner.merge.merge_steps`), which cuts stops.  A few routings
+   with ties broken at random are tried and the shortest kept
+   (:func:`grid_plan`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .geometry import closest_approach
+from .grid import Lattice
+from .problem import Problem
+from .tswap import tswap
+
+__all__ = ["GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "grid_plan", "grid_waypoints", "step_separated"]
+
+_TOL = 1e-9
+_MAX_VERTICES = 400_000
+
+
+def detect_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
+    """``(offset (2,), spacing c)`` of a square grid holding every start and target with
+    ``c >= separation``, or ``None``."""
+    pts = np.concatenate([problem.start, problem.target])
+    if len(pts) < 2:
+        return None
+    tol = _TOL * max(problem.width, problem.height, 1.0)
+    gaps = []
+    for axis in range(2):
+        u = np.unique(pts[:, axis])
+        d = np.diff(u)
+        d = d[d > tol]
+        if len(d):
+            gaps.append(d.min())
+    if not gaps:
+        return None
+    base = min(gaps)
+    sep = problem.separation
+    for k in range(1, 5):
+        c = base / k
+        if c < sep - tol:
+            return None
+        origin = pts.min(axis=0)
+        idx = np.round((pts - origin) / c)
+        if np.abs(origin + c * idx - pts).max() <= tol:
+            return np.mod(origin, c), float(c)
+    return None
+
+
+def build_grid(problem: Problem, offset: np.ndarray, c: float) -> tuple[Lattice, np.ndarray, np.ndarray] | None:
+    """The grid graph as a :class:`planner.grid.Lattice` (neighbour slots: right, up,
+    left, down), with the grid index ``(i, j)`` of every vertex and the ``(nx, ny)``
+    table of vertex ids (-1: not a vertex); ``None`` when the grid is too big."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    ox, oy = float(offset[0]), float(offset[1])
+    i0, i1 = math.ceil(-ox / c - _TOL), math.floor((problem.width - ox) / c + _TOL)
+    j0, j1 = math.ceil(-oy / c - _TOL), math.floor((problem.height - oy) / c + _TOL)
+    nx, ny = i1 - i0 + 1, j1 - j0 + 1
+    if nx <= 0 or ny <= 0 or nx * ny > _MAX_VERTICES:
+        return None
+    gi, gj = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1), indexing="ij")
+    pts = np.stack([ox + c * gi.ravel(), oy + c * gj.ravel()], axis=1)
+    ok = problem.env.points_clear(pts, problem.clearance)
+    vid = np.full(nx * ny, -1)
+    vid[ok] = np.arange(int(ok.sum()))
+    vid = vid.reshape(nx, ny)
+    ij = np.stack([gi.ravel(), gj.ravel()], axis=1)[ok]
+    pts = pts[ok]
+    nbr = np.full((len(pts), 4), -1)
+    rows, cols = [], []
+    for k, (dx, dy) in enumerate(((1, 0), (0, 1))):
+        a = vid[: nx - dx, : ny - dy].ravel()
+        b = vid[dx:, dy:].ravel()
+        both = (a >= 0) & (b >= 0)
+        a, b = a[both], b[both]
+        if len(a):
+            clear = problem.env.segments_clear(pts[a], pts[b], problem.clearance)
+            a, b = a[clear], b[clear]
+        nbr[a, k] = b
+        nbr[b, k + 2] = a
+        rows.append(a)
+        cols.append(b)
+    r, cc = np.concatenate(rows), np.concatenate(cols)
+    g = coo_matrix((np.ones(len(r)), (r, cc)), shape=(len(pts), len(pts)))
+    _, comp = connected_components(g, directed=False)
+    return Lattice(pts, nbr, float(c), comp), ij - np.array([i0, j0]), vid
+
+
+def step_separated(problem: Problem, a: np.ndarray, b: np.ndarray, reach: float) -> bool:
+    """Whether the step ``a -> b`` (no move longer than ``reach``) keeps every pair of
+    robots the separation apart, by the exact closest approach over the pairs whose
+    starts are within ``separation + 2 reach``."""
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(a).query_pairs(problem.separation + 2 * reach + 1e-9, output_type="ndarray")
+    if len(pairs) == 0:
+        return True
+    i, j = pairs[:, 0], pairs[:, 1]
+    d = closest_approach(a[i], b[i], a[j], b[j])
+    return bool(d.min() >= problem.separation - 1e-9)
+
+
+#: Routings tried by :func:`grid_plan` at most (the first breaks ties by distance only,
+#: the others also at random), within :data:`GRID_BUDGET_S` seconds.
+GRID_TRIES = 8
+GRID_BUDGET_S = 1.5
+
+
+def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
+    """``(merged waypoints, raw time steps)`` of the shortest of a few grid routings, or
+    ``None``.  Each try is routed (:func:`grid_waypoints`), merged
+    (:func:`planner.merge.merge_steps`) and timed; tries go on while they fit in
+    :data:`GRID_BUDGET_S` and before ``deadline``."""
+    from .merge import merge_steps
+    from .timing import _drop_idle, _makespan
+
+    grid = detect_grid(problem) if grid is None else grid
+    if grid is None:
+        return None
+    t0 = time.perf_counter()
+    if rng is None:
+        raise ValueError("rng: the grid stage draws its tie-breaks from the run's generator; pass it")
+    best = None
+    for k in range(GRID_TRIES):
+        now = time.perf_counter()
+        if k and (now > deadline or (now - t0) * (k + 1) / k > GRID_BUDGET_S):
+            break
+        raw = grid_waypoints(problem, deadline, grid, None if k == 0 else rng)
+        if raw is None:
+            if k == 0:
+                return None
+            continue
+        w = merge_steps(problem, _drop_idle(raw), deadline)
+        span = _makespan(problem, w)
+        if best is None or span < best[2]:
+            best = (w, len(raw) - 1, span)
+    return None if best is None else best[:2]
+
+
+def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None) -> list[np.ndarray] | None:
+    """Raw waypoints (one per time step) of the grid stage, or ``None`` (no grid, a start
+    or target off the graph, routing stalled, or the deadline).  ``rng``: ties among
+    equally far robots broken at random (another try)."""
+    grid = detect_grid(problem) if grid is None else grid
+    if grid is None:
+        return None
+    offset, c = grid
+    built = build_grid(problem, offset, c)
+    if built is None:
+        return None
+    lat, _, vid = built
+    i0 = math.ceil(-float(offset[0]) / c - _TOL)
+    j0 = math.ceil(-float(offset[1]) / c - _TOL)
+
+    def vertex(p: np.ndarray) -> np.ndarray:
+        ij = np.round((p - offset) / c).astype(int) - np.array([i0, j0])
+        if (ij < 0).any() or (ij[:, 0] >= vid.shape[0]).any() or (ij[:, 1] >= vid.shape[1]).any():
+            return np.full(len(p), -1)
+        return vid[ij[:, 0], ij[:, 1]]
+
+    sv, gv = vertex(problem.start), vertex(problem.target)
+    if (sv < 0).any() or (gv < 0).any():
+        return None
+    # sqrt(2) * separation or more: following with a turn is safe too
+    turns = c >= math.sqrt(2.0) * problem.separation
+    steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng)
+    if steps is None:
+        return None
+    raw = [np.asarray(problem.start, float)]
+    for where in steps:
+        if time.perf_counter() > deadline:
+            return None
+        nxt = lat.points[where]
+        if not step_separated(problem, raw[-1], nxt, c * (1 + 1e-9)):
+            return None  # never expected: the rule above keeps every step separated
+        raw.append(nxt)
+    # the robots end on the very target points (grid points equal them within 1e-9)
+    raw[-1] = _exact_targets(problem, raw[-1])
+    return raw
+
+
+def _exact_targets(problem: Problem, end: np.ndarray) -> np.ndarray:
+    """Each final grid point replaced by the target it stands for."""
+    from scipy.spatial import cKDTree
+
+    _, k = cKDTree(problem.target).query(end)
+    out = np.asarray(problem.target, float)[k]
+    return out if len(np.unique(k)) == len(k) else end

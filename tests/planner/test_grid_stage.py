@@ -1,0 +1,138 @@
+"""The grid stage (planner.gridstage) and the obstacle-respecting bound (planner.geobound)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planner import Plan, PlannerParams, Polygon, Problem, check_plan, plan
+from planner.bounds import lower_bounds
+from planner.geobound import geo_distances, geo_lower_bound
+from planner.geometry import closest_approach
+from planner.gridstage import detect_grid, grid_waypoints, step_separated
+from planner.plan import step_duration
+from planner.validate import PlanInvalid
+
+CELL = 2.4
+
+
+def _cells_problem(blocked: np.ndarray, starts, goals) -> Problem:
+    """Cells of 2.4 (row 0 at the top), radius 1, margin 0.1, robots at cell centres."""
+    rows, cols = blocked.shape
+    obs = []
+    for r in range(rows):
+        for c in range(cols):
+            if blocked[r, c]:
+                x0, y0 = c * CELL, (rows - r - 1) * CELL
+                obs.append(Polygon(np.array([[x0, y0], [x0 + CELL, y0], [x0 + CELL, y0 + CELL], [x0, y0 + CELL]])))
+
+    def centres(cells):
+        a = np.asarray(cells, float)
+        return np.stack([(a[:, 1] + 0.5) * CELL, (rows - a[:, 0] - 0.5) * CELL], axis=1)
+
+    return Problem(cols * CELL, rows * CELL, tuple(obs), 1.0, 0.1, centres(starts), centres(goals))
+
+
+def _wall_door(m: int = 20, seed: int = 0) -> Problem:
+    """12 x 12 cells, a wall down column 6 with a door one cell wide; starts and targets
+    random free cells (a few robots must pass the door)."""
+    blocked = np.zeros((12, 12), bool)
+    blocked[:, 6] = True
+    blocked[5, 6] = False
+    rng = np.random.default_rng(seed)
+    free = [(r, c) for r in range(12) for c in range(12) if not blocked[r, c]]
+    s = [free[k] for k in rng.choice(len(free), m, replace=False)]
+    g = [free[k] for k in rng.choice(len(free), m, replace=False)]
+    return _cells_problem(blocked, s, g)
+
+
+def test_grid_is_detected_and_paper_placements_are_not():
+    p = _wall_door()
+    offset, c = detect_grid(p)
+    assert math.isclose(c, CELL) and np.allclose(offset, 0.5 * CELL)
+    off = Problem(p.width, p.height, p.obstacles, 1.0, 0.1, p.start + np.array([1e-3, 0]), p.target)
+    assert detect_grid(off) is None
+
+
+def test_grid_stage_solves_a_wall_with_a_door():
+    p = _wall_door()
+    raw = grid_waypoints(p, deadline=math.inf)
+    assert raw is not None
+    result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(0))
+    assert stats.extra["direct"] == "grid"
+    check_plan(p, result)
+    geo = geo_lower_bound(p)
+    assert stats.makespan_lower_bound_geo_s == geo
+    assert result.makespan <= 2.0 * geo
+
+
+def test_every_grid_step_is_exactly_separated():
+    p = _wall_door(seed=3)
+    raw = grid_waypoints(p, deadline=math.inf)
+    for a, b in zip(raw[:-1], raw[1:]):
+        assert step_separated(p, a, b, CELL)
+    check_plan(p, Plan.from_waypoints(np.asarray(raw), p.radius, p.margin, p.max_speed, p.max_accel))
+
+
+def test_following_with_a_turn_is_caught_by_the_exact_check():
+    """Robot 0 leaves (0, 0) upwards while robot 1 enters it from the left: on a grid
+    of 2.4 < sqrt(2) * 2.1 they come within 2.4 / sqrt(2) = 1.70 < 2.1."""
+    a = np.array([[10.0, 10.0], [10.0 - CELL, 10.0]])
+    b = np.array([[10.0, 10.0 + CELL], [10.0, 10.0]])
+    d = closest_approach(a[0], b[0], a[1], b[1])
+    assert math.isclose(float(d), CELL / math.sqrt(2), rel_tol=1e-9)
+    p = Problem(30.0, 30.0, (), 1.0, 0.1, a, b)
+    assert not step_separated(p, a, b, CELL)
+    try:
+        check_plan(p, Plan.from_waypoints(np.stack([a, b]), 1.0, 0.1, p.max_speed, p.max_accel))
+    except PlanInvalid:
+        pass
+    else:
+        raise AssertionError("the turn was not caught")
+    # following straight on is fine
+    b2 = np.array([[10.0 + CELL, 10.0], [10.0, 10.0]])
+    assert step_separated(p, a, b2, CELL)
+
+
+def test_geo_bound_between_straight_bound_and_makespan():
+    p = _wall_door(seed=1)
+    result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(0))
+    geo = geo_lower_bound(p)
+    assert lower_bounds(p)[0] - 1e-9 <= geo <= result.makespan
+
+
+def test_geo_distances_are_lower_bounds_around_a_wall():
+    """A wall of 10 x 2 between two points: the shortest path of a centre goes around the
+    wall grown by 1.1, at least the path around the inscribed octagon, and more than straight."""
+    wall = Polygon(np.array([[9.0, 5.0], [11.0, 5.0], [11.0, 15.0], [9.0, 15.0]]))
+    s, t = np.array([[5.0, 10.0]]), np.array([[15.0, 10.0]])
+    p = Problem(20.0, 20.0, (wall,), 1.0, 0.1, s, t)
+    d = float(geo_distances(p)[0, 0])
+    c = 1.1
+    # true: tangent to the rounded corner (9, 15) from s, around to (11, 15), down to t
+    corner = np.array([9.0, 15.0])
+    r = np.linalg.norm(s[0] - corner)
+    tangent = math.sqrt(r * r - c * c)
+    ang = math.atan2(s[0, 1] - corner[1], s[0, 0] - corner[0]) % (2 * math.pi)  # corner -> s
+    arc = ang - math.acos(c / r) - math.pi / 2  # from the tangent point round to straight up
+    true = 2 * (tangent + c * arc) + 2.0  # 16.97
+    assert 16.9 < true < 17.0
+    assert 10.0 < d <= true + 1e-9
+    assert d > 0.97 * true
+
+
+def test_geo_bound_exceeds_the_straight_bound_on_a_maze():
+    blocked = np.zeros((9, 9), bool)
+    blocked[2, 0:8] = True
+    blocked[4, 1:9] = True
+    blocked[6, 0:8] = True
+    starts = [(0, c) for c in range(0, 9, 2)]
+    goals = [(8, c) for c in range(0, 9, 2)]
+    p = _cells_problem(blocked, starts, goals)
+    geo = geo_lower_bound(p)
+    assert geo > 1.5 * lower_bounds(p)[0]
+    result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(0))
+    assert geo <= result.makespan
+    # the bound of a straight step over the bottleneck path length
+    assert geo == step_duration(p.__dict__["_geo_bottleneck"], p.max_speed, p.max_accel)
