@@ -111,7 +111,7 @@ class BoxIndex:
 
     @property
     def edge_starts(self) -> np.ndarray:
-        self.edges
+        _ = self.edges  # computes and caches the starts too
         return self.__dict__["_starts"]
 
     def _index(self, name: str, boxes: np.ndarray):
@@ -136,7 +136,8 @@ class BoxIndex:
                 along_x = (ext[owner, 0] >= ext[owner, 1])[:, None]
                 span = hi - lo
                 plo = np.where(along_x, lo + np.stack([f0 * span[:, 0], 0 * f0], 1), lo + np.stack([0 * f0, f0 * span[:, 1]], 1))
-                phi = np.where(along_x, lo + np.stack([f1 * span[:, 0], span[:, 1]], 1), lo + np.stack([span[:, 0], f1 * span[:, 1]], 1))
+                phi = np.where(along_x, lo + np.stack([f1 * span[:, 0], span[:, 1]], 1),
+                       lo + np.stack([span[:, 0], f1 * span[:, 1]], 1))
                 half = 0.5 * float(np.linalg.norm(phi - plo, axis=1).max())
                 cached = (cKDTree(0.5 * (plo + phi)), owner, half)
             object.__setattr__(self, name, cached)

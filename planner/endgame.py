@@ -32,7 +32,6 @@ def sequential_finish(roadmap, pos: np.ndarray, where: list[int], sep: float, de
     Which robot goes to which empty target first matters (a robot that stops at the
     mouth of a channel closes it to the others), so the orders are searched depth
     first, nearest pair first, backtracking when some robot is left without a path."""
-    m = roadmap.m
     e = roadmap.edges
     if not len(e):
         return None

@@ -179,7 +179,6 @@ def _islands_apart(problem: Problem) -> bool:
         return True
     if len(i) > 64:
         return False  # leave crowded worlds to the exact overlay
-    import shapely
 
     geoms = _obstacle_geometries(problem)
     for a, b in zip(i.tolist(), j.tolist()):

@@ -233,8 +233,11 @@ def free_roadmap_waypoints(problem: Problem, deadline: float, rng: np.random.Gen
     if router == "pibt":
         from .pibt import pibt_route
 
+        if rng is None:
+            raise ValueError("rng: PIBT draws its tie-breaks from the run's generator; pass it")
+
         out = pibt_route(rm, field, goal_of, problem.separation, deadline,
-                         rng if rng is not None else np.random.default_rng(0), max_steps)
+                         rng, max_steps)
         return None if out is None else np.asarray(out)
     goal_of = list(goal_of)
     goals = np.arange(m, 2 * m)

@@ -143,6 +143,7 @@ def _fold_min(best, who, d, ids):
 
 
 _CHUNK = 1 << 21  # entries of a (rows x obstacle features) temporary
+_PIECES_PER_CALL = 200_000  # segment pieces met with the box index in one KD-tree query
 _DENSE_PAIRS = 1 << 17  # up to this many (query, box) pairs the dense box test is used
 
 
@@ -209,6 +210,14 @@ class Environment(BoxIndex):
         length = np.linalg.norm(b - a, axis=1)
         piece = max(2.0 * half, float(length.sum()) / 4_000_000, 1e-9)
         n = np.maximum(1, np.ceil(length / piece).astype(int))
+        if len(a) > 1 and int(n.sum()) > _PIECES_PER_CALL:
+            # Many queries (a large map's roadmap edges): in groups of about
+            # _PIECES_PER_CALL pieces, so that the pairs held at once stay bounded.
+            group = np.cumsum(n) // _PIECES_PER_CALL
+            parts = np.split(np.arange(len(a)), np.flatnonzero(np.diff(group)) + 1)
+            found = [self._pairs_near(name, boxes, a[rows], b[rows], clearance) for rows in parts]
+            return (np.concatenate([rows[q] for rows, (q, _) in zip(parts, found)]),
+                    np.concatenate([bi for _, bi in found]))
         seg = np.repeat(np.arange(len(a)), n)
         k = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
         f = ((k + 0.5) / n[seg])[:, None]

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .problem import Circle, Problem
+from .problem import Problem
 
 __all__ = ["Late", "corner_points", "expanded_placement", "guided_placements", "shortest_paths", "straight_lengths"]
 

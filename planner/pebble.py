@@ -203,7 +203,7 @@ def _graph_from_edges(v: np.ndarray, e: np.ndarray) -> PebbleGraph:
     # Renumber components by their lowest vertex so labels do not depend on
     # the library's traversal order.
     first = {}
-    for i, c in enumerate(labels):
+    for c in labels:
         first.setdefault(int(c), len(first))
     comp = np.array([first[int(c)] for c in labels], int)
     neighbors = tuple(adj.indices[adj.indptr[i] : adj.indptr[i + 1]].copy() for i in range(n))

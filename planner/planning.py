@@ -11,15 +11,17 @@ from .bounds import lower_bounds
 from .connect import sequenced_moves
 from .feasibility import feasibility
 from .freespace import free_roadmap_waypoints
+from .geobound import geo_lower_bound
+from .gridstage import detect_grid, grid_plan
 from .guide import Late
 from .lattice import lattice_candidates
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
 from .schedule import merge_steps, shortcut, step_clear
-from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
 from .timing import _drop_idle, _makespan, _timed
 from .tries import _Direct, _name_direct
+from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
 from .validate import PlanInvalid, check_plan
 
 __all__ = ["NoPlanFound", "plan"]
@@ -31,16 +33,18 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     Returns ``(Plan, PlanStats)``; the plan has passed the exact validator
     (its minimum gap is at least the margin).  Raises :class:`NoPlanFound`,
     carrying the stats, when no plan is found within the limits.
-    ``rng`` is the run's one generator (default: seeded with 0).  A plan
+    ``rng`` is the run's one generator (required: no default seed).  A plan
     found with too little of the time limit left to compute the makespan
     and path-length lower bounds (about ``1e-6 m^2`` s) is returned without
     them in its stats (NaN, and ``stats.extra["lower_bounds"]`` says why)
     unless they were already known.
     """
     params = params or PlannerParams()
+    if rng is None:
+        raise ValueError("rng: plan() draws from the run's one generator; pass it "
+                         "(numpy.random.Generator, e.g. np.random.default_rng(seed))")
     if params.margin_extra:
         return _plan_inflated(problem, params, rng)
-    rng = rng if rng is not None else np.random.default_rng(0)
     problem.validate()
     t0 = time.perf_counter()
     limit = t0 + params.time_limit
@@ -123,10 +127,28 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     else:  # about a second at 1000 robots: the time limit comes first (the stats keep NaN)
         stats.extra["lower_bounds"] = (f"not computed: they take about {need:.2g} s and "
                                        f"{max(left, 0.0):.2g} s of the time limit was left")
+    if stats.extra.get("direct") == "grid":  # elsewhere it would cost more than the plan
+        _geo_bound(problem, stats, t0, limit)
+    else:
+        stats.extra["geo_lower_bound"] = "not computed: grid worlds only (planner.geobound.geo_lower_bound)"
     stats.planning_time_s = time.perf_counter() - t0
     result = Plan(result.radius, result.margin, result.durations, result.waypoints,
                   result.max_speed, result.max_accel, stats)
     return result, stats
+
+
+def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> None:
+    """The obstacle-respecting makespan bound (:mod:`planner.geobound`) into the stats,
+    within at most a quarter of the time used so far (at least 0.2 s) and the time
+    limit; otherwise NaN and ``stats.extra["geo_lower_bound"]`` says why."""
+    now = time.perf_counter()
+    try:
+        stats.makespan_lower_bound_geo_s = geo_lower_bound(
+            problem, deadline=min(limit, now + max(0.2, 0.25 * (now - t0))))
+    except TimeoutError:
+        stats.extra["geo_lower_bound"] = "not computed: out of its time budget"
+    except Exception as exc:  # a statistic only: never worth losing a plan over
+        stats.extra["geo_lower_bound"] = f"not computed: {type(exc).__name__}: {exc}"
 
 
 def _plan_inflated(problem: Problem, params: PlannerParams, rng):
@@ -163,6 +185,10 @@ def _plan_inflated(problem: Problem, params: PlannerParams, rng):
 #: (:mod:`planner.lattice`) right after the one-step try: below it the
 #: structured stages find shorter plans in a few milliseconds.
 LATTICE_MIN_ROBOTS = 60
+
+#: From this many robots on, auto mode tries the grid stage (:mod:`planner.gridstage`)
+#: right after the one-step try when every start and target lies on one square grid.
+GRID_MIN_ROBOTS = 12
 
 #: From this many robots on, auto mode does not build the pebble-graph roadmap when its
 #: direct tries found nothing: its interference graphs grow with the square of the
@@ -208,6 +234,15 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
         if out.best[2] <= _GOOD_ENOUGH[1] * lower_bounds(problem)[0]:
             out.accepted = True
             return out
+    if problem.m >= GRID_MIN_ROBOTS and time.perf_counter() < deadline:
+        grid = detect_grid(problem)
+        if grid is not None:  # starts and targets on one grid (map cells): route on it
+            found = grid_plan(problem, deadline, grid, rng)
+            if found is not None:
+                w, sequential = found
+                out.offer("grid", sequential, (w, sequential, _makespan(problem, w)))
+                out.accepted = True
+                return out
     if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
         _lattice(problem, out, deadline)
         if out.best is not None:

@@ -159,7 +159,7 @@ class Roadmap:
         out = list(itertools.islice(nx.shortest_simple_paths(self.graph, source, goal, weight="weight"), k))
         for fam in self.families:
             keep = set(fam) | {0, 1}
-            sub = nx.subgraph_view(self.graph, filter_node=lambda node: node[0] in keep)
+            sub = nx.subgraph_view(self.graph, filter_node=lambda node, keep=keep: node[0] in keep)
             try:
                 r = nx.dijkstra_path(sub, source, goal, weight="weight")
             except (nx.NetworkXNoPath, nx.NodeNotFound):

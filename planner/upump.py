@@ -32,8 +32,8 @@ import numpy as np
 from .bounds import lower_bounds
 from .connect import Connection
 from .guide import expanded_placement, guided_placements
-from .passages import passage_points
 from .params import PlannerParams
+from .passages import passage_points
 from .pebble import build_pebble_graph, sample_free_points
 from .plan import PlanStats
 from .problem import Problem

@@ -144,18 +144,19 @@ def min_clearance(problem: Problem, plan: Plan) -> Clearance:
         # Each move against every robot of its step (a parked robot is a
         # zero-length move), in chunks that bound the temporaries.
         chunk = max(1, _PAIRS_PER_CALL // m)
-        low, at = np.inf, None
-        for c0 in range(0, len(step), chunk):
-            sl = slice(c0, c0 + chunk)
+        low: float = np.inf
+        at: tuple[int, int] = (0, 0)
+        for row0 in range(0, len(step), chunk):
+            sl = slice(row0, row0 + chunk)
             dist = closest_approach(am[sl, None], bm[sl, None], w[step[sl]], w[step[sl] + 1])
             dist[np.arange(len(dist)), robot[sl]] = np.inf  # a robot and itself
             flat = int(np.argmin(dist))
             if dist.flat[flat] < low:
-                low, at = float(dist.flat[flat]), (c0 + flat // m, flat % m)
+                low, at = float(dist.flat[flat]), (row0 + flat // m, flat % m)
         gap = low - 2 * r
         if gap < best.value:
-            n, j = at
-            k, i = int(step[n]), int(robot[n])
+            n_at, j = at
+            k, i = int(step[n_at]), int(robot[n_at])
             _, theta = closest_approach(w[k, i], w[k + 1, i], w[k, j], w[k + 1, j], return_theta=True)
             best = Clearance(gap, "robot-robot", (min(i, j), max(i, j)), None, k,
                              _theta_to_time(plan, k, float(theta)))

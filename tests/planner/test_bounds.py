@@ -46,7 +46,7 @@ def test_large_bottleneck_agrees_with_a_search_by_hopcroft_karp():
         k = int(np.searchsorted(values, got))
         assert values[k] == got  # one of the distances
 
-        def perfect(v):
+        def perfect(v, d=d):
             return bool(np.all(maximum_bipartite_matching(csr_matrix(d <= v), perm_type="column") >= 0))
 
         # the threshold holds a perfect matching and the next smaller distance does not

@@ -92,7 +92,6 @@ def test_indexed_kernels_match_the_dense_ones_in_clutter(seed, clearance):
     """Many obstacles: the indexed boolean tests give the exact kernels' answers, for
     short and long segments, points and points on obstacle corners and box sides."""
     import planner.geometry as geometry
-    from planner.geometry import points_in_polygon
 
     geometry._DENSE_PAIRS, saved = 0, geometry._DENSE_PAIRS  # always through the index
     try:

@@ -6,7 +6,6 @@ import math
 import time
 
 import numpy as np
-import pytest
 
 from planner import NoPlanFound, Plan, PlannerParams, Polygon, Problem, check_plan, plan
 from planner.bounds import lower_bounds

@@ -184,7 +184,7 @@ def test_a_drive_runs_in_the_realistic_loop_and_reaches_its_targets(model):
     problem, plan = _l_shape()
     params = SimParams(drive=DriveParams(model=model))
     assert params.realistic and not SimParams().realistic
-    r = execute(problem, plan, params)
+    r = execute(problem, plan, params, np.random.default_rng(0))
     assert r.ok, r.verdict
     d = r.to_dict()
     assert d["drive"] == model and d["drive_timing"]["model"] == model
@@ -283,7 +283,7 @@ def test_frames_draw_headings(tmp_path):
     from sim.scenario.params import RenderParams
 
     problem, plan = _l_shape()
-    r = execute(problem, plan, SimParams(drive=DriveParams(model="differential")))
+    r = execute(problem, plan, SimParams(drive=DriveParams(model="differential")), np.random.default_rng(0))
     params = RenderParams(size=200, trails=False)
     plain = render_frames(problem, r.times, r.positions, (), params)[0]
     drawn = render_frames(problem, r.times, r.positions, (), params, headings=r.headings)[0]

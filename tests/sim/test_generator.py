@@ -38,3 +38,13 @@ def test_the_scenario_makes_the_run_generator_from_its_seed():
     assert sc.generator().integers(1 << 30) == np.random.default_rng(sc.seed).integers(1 << 30)
     assert sc.generator(7).integers(1 << 30) == np.random.default_rng(7).integers(1 << 30)
     assert sc.generator(7).integers(1 << 30) != sc.generator(8).integers(1 << 30)  # the seed matters
+
+
+def test_the_planner_needs_the_run_generator_too():
+    from planner import PlannerParams, plan
+
+    problem, _ = _two()
+    with pytest.raises(ValueError, match="rng"):
+        plan(problem, PlannerParams(time_limit=5))
+    found, stats = plan(problem, PlannerParams(time_limit=5), np.random.default_rng(0))
+    assert stats.found and found.m == 2

@@ -310,7 +310,7 @@ def test_a_push_moves_only_the_pushed_robot_until_its_controller_pulls_it_back()
     problem = Problem(10, 10, (), 0.5, 0.1, start, start)
     plan = Plan(0.5, 0.1, np.zeros(0), start[None])
     params = SimParams(settle_time=1.0, disturbances=(Impulse(1, 0.2, (0.0, 0.5)),))
-    r = execute(problem, plan, params)
+    r = execute(problem, plan, params, np.random.default_rng(0))
     assert [(d.kind, d.robot) for d in r.disturbances] == [("impulse", 1)]
     assert r.disturbances[0].time == pytest.approx(0.2, abs=1 / 240 + 1e-9)
     assert r.tracking_error[:, 0].max() == pytest.approx(0.0, abs=1e-9)
@@ -380,9 +380,9 @@ def test_the_realistic_loop_reports_progress_and_uses_the_runs_generator():
     plan = Plan(0.5, 0.1, np.zeros(0), start[None])
     params = SimParams(settle_time=0.5, noise=Noise(position=0.01))
     seen = []
-    a = execute(problem, plan, params, progress=seen.append)
+    a = execute(problem, plan, params, np.random.default_rng(0), progress=seen.append)
     assert seen and seen[-1] == 1.0 and seen == sorted(seen)
-    b = execute(problem, plan, params, np.random.default_rng(0))
+    b = execute(problem, plan, params, np.random.default_rng(0))  # the same seed repeats
     c = execute(problem, plan, params, np.random.default_rng(1))
     assert np.array_equal(a.positions, b.positions)
     assert not np.array_equal(b.positions, c.positions)
