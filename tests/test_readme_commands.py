@@ -25,7 +25,7 @@ PLACEHOLDER = re.compile(r"\b[A-Z][A-Z_]{2,}\b|\.\.\.|\[-|\]\s*$")
 LONG = ("swarmform tune", "python -m bench", ".venv/bin/python -m bench", "prlimit", "python tests/mutation",
         ".venv/bin/python tests/mutation", "swarmform check scenarios/paper")
 SKIP = ("python3 -m venv", ".venv/bin/pip", "python -m pytest", ".venv/bin/python -m pytest", "source ")
-START_S = 8.0  # a long command must still be running (or be done, exit 0) after this long
+START_S = 3.0  # a long command must still be running (or be done, exit 0) after this long
 QUICK_S = 240.0
 
 

@@ -45,6 +45,7 @@ def _run(tmp_path: Path, size: int, budget: int, name: str):
         return p.returncode, err.read(), usage.ru_maxrss * 1024, out
 
 
+@pytest.mark.slow  # renders 3072-pixel frames under prlimit: about 8 s
 def test_largest_size_renders_within_the_budget(tmp_path):
     code, err, peak, out = _run(tmp_path, MAX_RENDER_SIZE, BUDGET, "cap")
     assert code == 0, err[-2000:]
