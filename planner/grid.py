@@ -11,7 +11,7 @@ import numpy as np
 
 from .problem import Problem
 
-__all__ = ["Lattice", "build_lattice", "lattice_spacing"]
+__all__ = ["Lattice", "build_lattice", "grid_graph", "lattice_spacing"]
 
 
 _SLACK = 1.0 + 1e-6  # spacing over sqrt(2) * separation
@@ -45,9 +45,6 @@ def lattice_spacing(problem: Problem) -> float:
 def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] = (0.0, 0.0)) -> Lattice:
     """The lattice of clear points and clear 4-neighbour edges (both exact); ``shift``
     moves it by that fraction of the spacing."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     c = problem.clearance
     nx = int(math.floor((problem.width - 2 * c) / spacing - shift[0])) + 1
     ny = int(math.floor((problem.height - 2 * c) / spacing - shift[1])) + 1
@@ -55,7 +52,18 @@ def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] =
     ox = c + 0.5 * (problem.width - 2 * c - (nx - 1 + shift[0]) * spacing) + shift[0] * spacing
     oy = c + 0.5 * (problem.height - 2 * c - (ny - 1 + shift[1]) * spacing) + shift[1] * spacing
     gx, gy = np.meshgrid(ox + spacing * np.arange(nx), oy + spacing * np.arange(ny), indexing="ij")
-    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    return grid_graph(problem, np.stack([gx.ravel(), gy.ravel()], axis=1), nx, ny, spacing)[0]
+
+
+def grid_graph(problem: Problem, pts: np.ndarray, nx: int, ny: int,
+               spacing: float) -> tuple[Lattice, np.ndarray, np.ndarray]:
+    """The clear points of the ``(nx, ny)`` grid ``pts`` (x-major) and their clear
+    4-neighbour edges (both exact) as a :class:`Lattice`, with the mask of clear grid
+    points and the ``(nx, ny)`` table of vertex ids (-1: not a vertex)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    c = problem.clearance
     ok = problem.env.points_clear(pts, c)
     vid = np.full(nx * ny, -1)
     vid[ok] = np.arange(int(ok.sum()))
@@ -68,8 +76,9 @@ def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] =
         b = vid[dx:, dy:].ravel()
         both = (a >= 0) & (b >= 0)
         a, b = a[both], b[both]
-        clear = problem.env.segments_clear(pts[a], pts[b], c)
-        a, b = a[clear], b[clear]
+        if len(a):
+            clear = problem.env.segments_clear(pts[a], pts[b], c)
+            a, b = a[clear], b[clear]
         nbr[a, k] = b  # right / up
         nbr[b, k + 2] = a  # left / down
         rows.append(a)
@@ -77,4 +86,4 @@ def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] =
     r, cc = np.concatenate(rows), np.concatenate(cols)
     g = coo_matrix((np.ones(len(r)), (r, cc)), shape=(len(pts), len(pts)))
     _, comp = connected_components(g, directed=False)
-    return Lattice(pts, nbr, float(spacing), comp)
+    return Lattice(pts, nbr, float(spacing), comp), ok, vid

@@ -45,7 +45,7 @@ import time
 import numpy as np
 
 from .geometry import closest_approach
-from .grid import Lattice
+from .grid import Lattice, grid_graph
 from .problem import Problem
 from .tswap import tswap
 
@@ -88,9 +88,6 @@ def build_grid(problem: Problem, offset: np.ndarray, c: float) -> tuple[Lattice,
     """The grid graph as a :class:`planner.grid.Lattice` (neighbour slots: right, up,
     left, down), with the grid index ``(i, j)`` of every vertex and the ``(nx, ny)``
     table of vertex ids (-1: not a vertex); ``None`` when the grid is too big."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     ox, oy = float(offset[0]), float(offset[1])
     i0, i1 = math.ceil(-ox / c - _TOL), math.floor((problem.width - ox) / c + _TOL)
     j0, j1 = math.ceil(-oy / c - _TOL), math.floor((problem.height - oy) / c + _TOL)
@@ -99,30 +96,9 @@ def build_grid(problem: Problem, offset: np.ndarray, c: float) -> tuple[Lattice,
         return None
     gi, gj = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1), indexing="ij")
     pts = np.stack([ox + c * gi.ravel(), oy + c * gj.ravel()], axis=1)
-    ok = problem.env.points_clear(pts, problem.clearance)
-    vid = np.full(nx * ny, -1)
-    vid[ok] = np.arange(int(ok.sum()))
-    vid = vid.reshape(nx, ny)
+    lattice, ok, vid = grid_graph(problem, pts, nx, ny, c)
     ij = np.stack([gi.ravel(), gj.ravel()], axis=1)[ok]
-    pts = pts[ok]
-    nbr = np.full((len(pts), 4), -1)
-    rows, cols = [], []
-    for k, (dx, dy) in enumerate(((1, 0), (0, 1))):
-        a = vid[: nx - dx, : ny - dy].ravel()
-        b = vid[dx:, dy:].ravel()
-        both = (a >= 0) & (b >= 0)
-        a, b = a[both], b[both]
-        if len(a):
-            clear = problem.env.segments_clear(pts[a], pts[b], problem.clearance)
-            a, b = a[clear], b[clear]
-        nbr[a, k] = b
-        nbr[b, k + 2] = a
-        rows.append(a)
-        cols.append(b)
-    r, cc = np.concatenate(rows), np.concatenate(cols)
-    g = coo_matrix((np.ones(len(r)), (r, cc)), shape=(len(pts), len(pts)))
-    _, comp = connected_components(g, directed=False)
-    return Lattice(pts, nbr, float(c), comp), ij - np.array([i0, j0]), vid
+    return lattice, ij - np.array([i0, j0]), vid
 
 
 def step_separated(problem: Problem, a: np.ndarray, b: np.ndarray, reach: float) -> bool:
