@@ -27,3 +27,27 @@ def marker(tmp_path, monkeypatch):
 
     monkeypatch.setattr(tune_spec, "run_one", run_one)
     return path
+
+
+_CASE_HEAD = """
+name: case
+workspace: [20, 20]
+robots: {radius: 1.0, margin: 0.1, count: 4}
+start: {formation: line, rotation: 0, center: [10, 5]}
+target: {formation: line, rotation: 0, center: [10, 15]}
+"""
+
+
+@pytest.fixture
+def read_case(tmp_path):
+    """``read_case(body)``: a 4-robot line-to-line scenario with ``body`` (YAML) appended, read."""
+    import textwrap
+
+    from sim.scenario import read_scenario
+
+    def read(body: str):
+        path = tmp_path / "case.yaml"
+        path.write_text(textwrap.dedent(_CASE_HEAD) + textwrap.dedent(body), encoding="utf-8")
+        return read_scenario(path)
+
+    return read

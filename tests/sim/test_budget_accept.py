@@ -4,7 +4,6 @@ verdict's accept rule (``sim.accept``): each with its negative control.
 
 from __future__ import annotations
 
-import textwrap
 import time
 
 import numpy as np
@@ -13,7 +12,7 @@ import pytest
 from planner import PlannerParams, Problem
 from planner.plan import Plan
 from sim.execute.physics import execute
-from sim.scenario import ScenarioError, read_scenario
+from sim.scenario import ScenarioError
 from sim.scenario.params import Failure, Impulse, Noise, Pushes, Recovery, SimParams
 
 R, MARGIN = 0.5, 0.1
@@ -108,27 +107,14 @@ def test_without_a_failure_both_rules_pass():
 
 # -- settings ----------------------------------------------------------------------------------
 
-HEAD = """
-name: case
-workspace: [20, 20]
-robots: {radius: 1.0, margin: 0.1, count: 4}
-start: {formation: line, rotation: 0, center: [10, 5]}
-target: {formation: line, rotation: 0, center: [10, 15]}
-"""
 
 
-def _read(tmp_path, body):
-    path = tmp_path / "case.yaml"
-    path.write_text(textwrap.dedent(HEAD) + textwrap.dedent(body), encoding="utf-8")
-    return read_scenario(path)
-
-
-def test_the_new_keys_are_read(tmp_path):
-    s = _read(tmp_path, "sim: {accept: working, recovery: {replan_time_limit: 3, on_budget: continue}}").sim
+def test_the_new_keys_are_read(tmp_path, read_case):
+    s = read_case("sim: {accept: working, recovery: {replan_time_limit: 3, on_budget: continue}}").sim
     assert s.accept == "working" and s.recovery.replan_time_limit == 3.0 and s.recovery.on_budget == "continue"
-    old = _read(tmp_path, "sim: {recovery: {time_limit: 4}}").sim.recovery
+    old = read_case("sim: {recovery: {time_limit: 4}}").sim.recovery
     assert old.replan_time_limit == 4.0 == old.time_limit  # the old name is an alias
-    d = _read(tmp_path, "").sim
+    d = read_case("").sim
     assert d.accept == "targets" and d.recovery.on_budget == "fail"
 
 
@@ -138,9 +124,9 @@ def test_the_new_keys_are_read(tmp_path):
     ("sim: {recovery: {on_budget: ignore}}", "sim.recovery.on_budget", "fail, continue"),
     ("sim: {accept: all}", "sim.accept", "targets, working"),
 ])
-def test_bad_values_name_the_field(tmp_path, body, field, words):
+def test_bad_values_name_the_field(tmp_path, body, field, words, read_case):
     with pytest.raises(ScenarioError) as info:
-        _read(tmp_path, body + "\n")
+        read_case(body + "\n")
     assert info.value.field == field and words in info.value.reason, info.value.reason
 
 

@@ -7,7 +7,6 @@ Every effect is checked against its negative control: the same case without it.
 from __future__ import annotations
 
 import math
-import textwrap
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from planner.plan import Plan
 from sim.execute.estimate import DEFAULT_FAILURE_DELAY, Estimator, PositionSensor, alpha_beta_gains
 from sim.execute.physics import execute
 from sim.execute.realism import ControlClock, streams
-from sim.scenario import ScenarioError, read_scenario
+from sim.scenario import ScenarioError
 from sim.scenario.params import Failure, Noise, Recovery, Sensing, SimParams
 
 T = 1.0 / 60.0
@@ -195,29 +194,16 @@ def test_a_failure_is_told_after_the_detection_delay():
 
 # -- settings ----------------------------------------------------------------------------------
 
-HEAD = """
-name: case
-workspace: [20, 20]
-robots: {radius: 1.0, margin: 0.1, count: 4}
-start: {formation: line, rotation: 0, center: [10, 5]}
-target: {formation: line, rotation: 0, center: [10, 15]}
-"""
 
 
-def _read(tmp_path, body):
-    path = tmp_path / "case.yaml"
-    path.write_text(textwrap.dedent(HEAD) + textwrap.dedent(body), encoding="utf-8")
-    return read_scenario(path)
-
-
-def test_sensing_is_read(tmp_path):
-    sc = _read(tmp_path, """
+def test_sensing_is_read(tmp_path, read_case):
+    sc = read_case("""
         sim:
           sensing: {rate: 30, dropout: 0.1, latency_jitter: 0.02, bias_drift: 0.01, estimator: alpha_beta,
                     process_noise: 50, failure_delay: 0.3}
     """)
     assert sc.sim.sensing == Sensing(30.0, 0.1, 0.02, 0.01, "alpha_beta", 50.0, 0.3)
-    assert _read(tmp_path, "").sim.sensing is None
+    assert read_case("").sim.sensing is None
 
 
 @pytest.mark.parametrize("body, field, words", [
@@ -230,8 +216,8 @@ def test_sensing_is_read(tmp_path):
     ("sim: {sensing: {process_noise: 0}}", "sim.sensing.process_noise", "in (0, 1e+08]"),
     ("sim: {sensing: {dropuot: 0.1}}", "sim.sensing.dropuot", "unknown key"),
 ])
-def test_bad_sensing_names_the_field(tmp_path, body, field, words):
+def test_bad_sensing_names_the_field(tmp_path, body, field, words, read_case):
     with pytest.raises(ScenarioError) as info:
-        _read(tmp_path, body + "\n")
+        read_case(body + "\n")
     assert info.value.field == field
     assert words in info.value.reason, info.value.reason
