@@ -30,8 +30,8 @@ PLAN_KEYS = frozenset({"scenario", "seed", "radius", "margin", "profile", "durat
 """The top-level keys of a plan file (what :meth:`Plan.to_json` and ``swarmform plan`` write)."""
 MAX_STEPS = 100_000
 """The most steps a plan file may hold."""
-MAX_ROBOTS = 1000
-"""The most robots a plan file may move."""
+MAX_ROBOTS = 5000
+"""The most robots a plan file may move (as many as a scenario may have)."""
 MIN_DURATION = 1e-3
 """The shortest step a plan file may hold [s]."""
 MAX_DURATION = 1e5

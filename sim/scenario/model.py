@@ -16,13 +16,13 @@ from .params import RenderParams, SimParams
 __all__ = ["FormationSpec", "MAX_FILE_BYTES", "PaperRef", "RandomObstacles", "Scenario", "ScenarioError"]
 
 
-MAX_FILE_BYTES = 256 << 10
-"""The largest scenario file read [bytes]: 256 KiB, room for 1000 explicit start and target
-points and 4096 polygon vertices (the biggest shipped scenario is under 1 KiB)."""
+MAX_FILE_BYTES = 2 << 20
+"""The largest scenario file read [bytes]: 2 MiB, room for 5000 explicit start and target
+points at full precision (5000 of each with three decimals take 195 KB and read in 0.2 s)."""
 
 # Bounds shared by several fields (see the README's input table).
 _MAX_SIDE = 1000.0  # workspace side [units]
-_MAX_ROBOTS = 1000
+_MAX_ROBOTS = 5000  # measured: 5000 scattered to scattered at 10 % coverage plan in 31 s, 1.2 GB
 # Obstacles of a scenario (random ones included), and their vertices (a random
 # obstacle counts as 8, the most it has).  The planner's clearance and
 # visibility kernels are indexed (memory about linear in edges); at these caps

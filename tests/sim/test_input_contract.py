@@ -76,7 +76,7 @@ def _doc(field: str, value) -> dict:
     for key, extra in _COMPANY.get(field, {}).items():
         doc[key] = dict(doc.get(key) or {}, **extra) if key not in ("start", "target") else extra
     if field == "robots.count":  # as many points as robots, so that only the count can be wrong
-        n = max(1, min(int(value), 1000))
+        n = max(1, min(int(value), 5000))
         doc["start"] = {"points": [[1 + i % 30, 1 + i // 30] for i in range(n)]}
         doc["target"] = {"points": [[1 + i % 30, 1 + i // 30] for i in range(n)]}
     if field == "workspace":
