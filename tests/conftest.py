@@ -40,14 +40,15 @@ target: {formation: line, rotation: 0, center: [10, 15]}
 
 @pytest.fixture
 def read_case(tmp_path):
-    """``read_case(body)``: a 4-robot line-to-line scenario with ``body`` (YAML) appended, read."""
+    """``read_case(body, overrides=None)``: a 4-robot line-to-line scenario with ``body`` (YAML)
+    appended, read (with ``--set``-style ``overrides``)."""
     import textwrap
 
     from sim.scenario import read_scenario
 
-    def read(body: str):
+    def read(body: str, overrides: dict | None = None):
         path = tmp_path / "case.yaml"
         path.write_text(textwrap.dedent(_CASE_HEAD) + textwrap.dedent(body), encoding="utf-8")
-        return read_scenario(path)
+        return read_scenario(path, overrides=overrides)
 
     return read

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import textwrap
 from types import SimpleNamespace
 
 import numpy as np
@@ -23,7 +22,7 @@ from sim.execute.drive import (
 from sim.execute.physics import execute
 from sim.execute.realism import DelayLine
 from sim.execute.world import build_world
-from sim.scenario import ScenarioError, read_scenario
+from sim.scenario import ScenarioError
 from sim.scenario.params import DriveParams, SimParams
 
 H = 1.0 / 240.0  # the default physics step: dt / substeps
@@ -239,27 +238,14 @@ def test_programmatic_params_are_checked():
 
 # -- the scenario's sim.drive --------------------------------------------------------
 
-HEAD = """
-name: case
-workspace: [20, 20]
-robots: {radius: 1.0, margin: 0.1, count: 4}
-start: {formation: line, rotation: 0, center: [10, 5]}
-target: {formation: line, rotation: 0, center: [10, 15]}
-"""
 
 
-def _read(tmp_path, body: str, overrides=None):
-    path = tmp_path / "case.yaml"
-    path.write_text(textwrap.dedent(HEAD) + textwrap.dedent(body), encoding="utf-8")
-    return read_scenario(path, overrides=overrides).sim
-
-
-def test_sim_drive_is_read_as_a_mapping_a_name_or_a_set_key(tmp_path):
-    assert _read(tmp_path, "").drive == DriveParams()
-    got = _read(tmp_path, "sim: {drive: {model: differential, wheel_base: 1.2, wheel_speed: 2, lookahead: 0.5}}")
+def test_sim_drive_is_read_as_a_mapping_a_name_or_a_set_key(tmp_path, read_case):
+    assert read_case("").sim.drive == DriveParams()
+    got = read_case("sim: {drive: {model: differential, wheel_base: 1.2, wheel_speed: 2, lookahead: 0.5}}").sim
     assert got.drive == DriveParams(model="differential", wheel_base=1.2, wheel_speed=2.0, lookahead=0.5)
-    assert _read(tmp_path, "sim: {drive: velocity}").drive.model == "velocity"
-    assert _read(tmp_path, "", {"sim.drive.model": "differential"}).drive.model == "differential"
+    assert read_case("sim: {drive: velocity}").sim.drive.model == "velocity"
+    assert read_case("", {"sim.drive.model": "differential"}).sim.drive.model == "differential"
 
 
 @pytest.mark.parametrize("body, message", [
@@ -272,9 +258,9 @@ def test_sim_drive_is_read_as_a_mapping_a_name_or_a_set_key(tmp_path):
     ("sim: {drive: {wheel_speed: 1}}", "sim.drive.wheel_speed: is not a setting of the holonomic drive"),
     ("sim: {drive: {modle: velocity}}", "sim.drive.modle: unknown key"),
 ])
-def test_bad_drive_settings_name_the_field(tmp_path, body, message):
+def test_bad_drive_settings_name_the_field(tmp_path, body, message, read_case):
     with pytest.raises(ScenarioError) as exc:
-        _read(tmp_path, body)
+        read_case(body)
     assert message in str(exc.value)
 
 
