@@ -26,7 +26,7 @@ from .drive import drive_report, make_drive
 from .estimate import failure_delay, make_estimator
 from .guard import SpeedGuard
 from .monitor import GapMonitor
-from .outcome import SimReport, assemble, filled, reached
+from .outcome import SimReport, _finite, assemble, filled, reached
 from .realism import ControlClock, DelayLine, Events, G, Resistance, Sensor, phase_margin, real_masses, streams
 from .recovery import AVERAGE, SETTLE, RecoveryFailed, Replan, StopReference, replan, replan_world
 from .world import World, build_world
@@ -35,11 +35,6 @@ __all__ = ["CHUNK", "execute_real"]
 
 CHUNK = 64  # control steps per reference batch, monitor batch and progress call
 _EPS_T = 1e-9
-
-
-def _finite(v: float):
-    v = float(v)
-    return v if math.isfinite(v) else None
 
 
 class _Samples:
