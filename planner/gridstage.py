@@ -35,6 +35,12 @@ lattice stage's lattice (:mod:`planner.lattice`) but the natural graph.
    (:func:`planner.merge.merge_steps`), which cuts stops.  A few routings
    with ties broken at random are tried and the shortest kept
    (:func:`grid_plan`).
+5. **Fewer steps**: TSWAP needs up to twice the shortest routing's steps
+   when about half the vertices are taken.  Where the time-expanded graph
+   is small enough, the routing with the fewest steps under the same rules
+   is then sought as an integer program (:func:`planner.gridflow.flow_route`)
+   below TSWAP's count, within :data:`FLOW_BUDGET_S`, a third of the time
+   left and ``0.5 + 0.025 m`` seconds, and kept when its plan is shorter.
 """
 
 from __future__ import annotations
@@ -49,7 +55,8 @@ from .grid import Lattice, grid_graph
 from .problem import Problem
 from .tswap import tswap
 
-__all__ = ["GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "grid_plan", "grid_waypoints", "step_separated"]
+__all__ = ["FLOW_BUDGET_S", "GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "grid_plan", "grid_waypoints",
+           "step_separated"]
 
 _TOL = 1e-9
 _MAX_VERTICES = 400_000
@@ -119,6 +126,8 @@ def step_separated(problem: Problem, a: np.ndarray, b: np.ndarray, reach: float)
 #: the others also at random), within :data:`GRID_BUDGET_S` seconds.
 GRID_TRIES = 8
 GRID_BUDGET_S = 1.5
+#: Seconds the shortest-routing search (:mod:`planner.gridflow`) may take at most.
+FLOW_BUDGET_S = 12.0
 
 
 def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
@@ -149,13 +158,24 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
         span = _makespan(problem, w)
         if best is None or span < best[2]:
             best = (w, len(raw) - 1, span)
+    if best is not None and best[1] > 1:
+        left = deadline - time.perf_counter()
+        budget = min(FLOW_BUDGET_S, left / 3, 0.5 + 0.025 * problem.m)
+        raw = grid_waypoints(problem, deadline, grid, flow=(best[1], budget))
+        if raw is not None:
+            w = merge_steps(problem, _drop_idle(raw), deadline)
+            span = _makespan(problem, w)
+            if span < best[2]:
+                best = (w, len(raw) - 1, span)
     return None if best is None else best[:2]
 
 
-def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None) -> list[np.ndarray] | None:
+def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
+                   flow: tuple[int, float] | None = None) -> list[np.ndarray] | None:
     """Raw waypoints (one per time step) of the grid stage, or ``None`` (no grid, a start
     or target off the graph, routing stalled, or the deadline).  ``rng``: ties among
-    equally far robots broken at random (another try)."""
+    equally far robots broken at random (another try).  ``flow = (steps, budget)``:
+    route by :func:`planner.gridflow.flow_route` in fewer than ``steps`` instead."""
     grid = detect_grid(problem) if grid is None else grid
     if grid is None:
         return None
@@ -178,7 +198,12 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None) -> li
         return None
     # sqrt(2) * separation or more: following with a turn is safe too
     turns = c >= math.sqrt(2.0) * problem.separation
-    steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng)
+    if flow is not None:
+        from .gridflow import flow_route
+
+        steps = flow_route(lat, sv, gv, deadline, turns=turns, below=flow[0], budget=flow[1])
+    else:
+        steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng)
     if steps is None:
         return None
     raw = [np.asarray(problem.start, float)]

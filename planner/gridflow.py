@@ -1,0 +1,287 @@
+"""Makespan-optimal routing on the grid stage's graph: a time-expanded flow.
+
+For unlabeled robots on a graph, Yu and LaValle ("Multi-agent path planning
+and network flow", WAFR 2012) route by a flow in the time-expanded graph:
+one layer of vertices per time step, an arc from ``(v, t)`` to ``(u, t + 1)``
+for every edge ``v u`` and a waiting arc to ``(v, t + 1)``; unit vertex
+capacities keep robots apart, and a gadget per edge and step forbids two
+robots crossing it in opposite directions.  With a horizon of ``T`` steps a
+flow of value ``m`` from the starts to the targets is a plan of ``T`` steps,
+and the smallest ``T`` with such a flow is the shortest makespan in steps.
+
+The grid stage's graph needs one more rule (:mod:`planner.gridstage`): on
+a grid finer than ``sqrt(2)`` separations a robot may not enter a vertex
+in the step its occupant leaves it in a perpendicular direction (following
+with a turn brings them ``c / sqrt(2)`` apart).  That is a side constraint
+per vertex, step and direction of entry::
+
+    x[t, w -> v] + x[t, v -> left of that direction] + x[t, v -> right of it] <= 1
+
+so the problem is a small integer program rather than a pure flow.  It is
+solved with HiGHS (``scipy.optimize.milp``), the horizon ``T`` found by
+bisection between the smallest at which the flow without the edge and turn
+rules carries every robot (no plan is shorter) and one below a plan
+already known, within a time budget (the program has no objective: any
+routing of that horizon will do).  Vertices that no start reaches by
+step ``t`` or that reach no target in the remaining ``T - t`` steps are left
+out of layer ``t`` (they cannot carry a robot then).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .grid import Lattice
+
+__all__ = ["FLOW_MAX_VARIABLES", "flow_route", "grid_distances", "relaxed_horizon"]
+
+#: Largest integer program tried (variables); above it the grid stage keeps TSWAP.
+FLOW_MAX_VARIABLES = 150_000
+
+
+
+def grid_distances(lat: Lattice, sources: np.ndarray) -> np.ndarray:
+    """Steps from the nearest of ``sources`` to every vertex (``inf``: unreachable)."""
+    n = lat.n
+    dist = np.full(n, np.inf)
+    frontier = np.unique(np.asarray(sources, int))
+    dist[frontier] = 0
+    d = 0
+    while len(frontier):
+        d += 1
+        nxt = lat.nbr[frontier].ravel()
+        nxt = np.unique(nxt[nxt >= 0])
+        nxt = nxt[np.isinf(dist[nxt])]
+        dist[nxt] = d
+        frontier = nxt
+    return dist
+
+
+def _flow_value(lat: Lattice, sv, gv, horizon: int) -> int:
+    """Maximum flow of the time-expanded graph without the edge and turn rules (a
+    relaxation: below ``m`` no routing of ``horizon`` steps exists)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import maximum_flow
+
+    n = lat.n
+    # nodes: source 0, sink 1, then (t, v, in) = 2 + 2 (t n + v), (t, v, out) = that + 1
+    def node(t, v, out):
+        return 2 + 2 * (t * n + v) + out
+
+    v, k = np.nonzero(lat.nbr >= 0)
+    u = lat.nbr[v, k]
+    a, b = [np.zeros(len(sv), int)], [node(0, np.asarray(sv), 0)]
+    every = np.arange(n)
+    for t in range(horizon + 1):
+        a.append(node(t, every, 0))
+        b.append(node(t, every, 1))
+        if t < horizon:
+            a += [node(t, v, 1), node(t, every, 1)]
+            b += [node(t + 1, u, 0), node(t + 1, every, 0)]
+    a.append(node(horizon, np.asarray(gv), 1))
+    b.append(np.ones(len(gv), int))
+    a_, b_ = np.concatenate(a), np.concatenate(b)
+    size = 2 + 2 * n * (horizon + 1)
+    g = csr_matrix((np.ones(len(a_), np.int32), (a_, b_)), shape=(size, size))
+    return int(maximum_flow(g, 0, 1).flow_value)
+
+
+def _program(lat: Lattice, sv, gv, horizon: int, turns: bool):
+    """Arrays of the integer program of ``horizon`` steps, or ``None`` when too big."""
+    from scipy.sparse import coo_matrix
+
+    n = lat.n
+    ds, dg = grid_distances(lat, sv), grid_distances(lat, gv)
+    # arcs (t, v, slot) whose tail and head can carry a robot at t and t + 1
+    head_of = np.concatenate([lat.nbr, np.arange(n)[:, None]], axis=1)  # (n, 5)
+    tt, vv, kk = [], [], []
+    for t in range(horizon):
+        tail_ok = (ds <= t) & (dg <= horizon - t)
+        head = head_of
+        ok = (head >= 0) & tail_ok[:, None]
+        hv = np.where(head >= 0, head, 0)
+        ok &= (ds[hv] <= t + 1) & (dg[hv] <= horizon - t - 1)
+        v, k = np.nonzero(ok)
+        tt.append(np.full(len(v), t))
+        vv.append(v)
+        kk.append(k)
+    t_, v_, k_ = np.concatenate(tt), np.concatenate(vv), np.concatenate(kk)
+    nvar = len(t_)
+    if nvar > FLOW_MAX_VARIABLES:
+        return None
+    h_ = head_of[v_, k_]
+    index = np.full((horizon, n, 5), -1)
+    index[t_, v_, k_] = np.arange(nvar)
+    rows, cols, vals, lo, hi = [], [], [], [], []
+    r = 0
+    s_mask = np.zeros(n, bool)
+    s_mask[sv] = True
+    g_mask = np.zeros(n, bool)
+    g_mask[gv] = True
+    # out(t, v) - in(t - 1 -> v) = [t == 0 and v a start]; in(horizon - 1 -> v) = [v a target]
+    for t in range(horizon + 1):
+        rid = r + np.arange(n)
+        if t < horizon:
+            sel = t_ == t
+            rows.append(rid[v_[sel]])
+            cols.append(np.nonzero(sel)[0])
+            vals.append(np.ones(int(sel.sum())))
+        if t > 0:
+            sel = t_ == t - 1
+            rows.append(rid[h_[sel]])
+            cols.append(np.nonzero(sel)[0])
+            vals.append(-np.ones(int(sel.sum())))
+        b = s_mask.astype(float) if t == 0 else (-g_mask.astype(float) if t == horizon else np.zeros(n))
+        lo.append(b)
+        hi.append(b)
+        r += n
+    # at most one robot on a vertex: out(t, v) <= 1 (t >= 1; t = 0 is fixed above)
+    sel = (t_ >= 1)
+    rows.append(r + (t_[sel] - 1) * n + v_[sel])
+    cols.append(np.nonzero(sel)[0])
+    vals.append(np.ones(int(sel.sum())))
+    lo.append(np.full((horizon - 1) * n, -np.inf))
+    hi.append(np.ones((horizon - 1) * n))
+    r += (horizon - 1) * n
+    # no swap: x[t, u -> w] + x[t, w -> u] <= 1, and (grids finer than sqrt(2) separations)
+    # no following with a turn: x[t, w -> v] + x[t, v -> both perpendicular slots] <= 1
+    groups = []
+    mv = k_ < 4
+    a_idx = np.nonzero(mv & ((k_ == 0) | (k_ == 1)))[0]
+    back = index[t_[a_idx], h_[a_idx], k_[a_idx] + 2]
+    keep = back >= 0
+    groups.append(np.stack([a_idx[keep], back[keep]], axis=1))
+    if not turns:
+        m_idx = np.nonzero(mv)[0]
+        p1 = index[t_[m_idx], h_[m_idx], (k_[m_idx] + 1) % 4]
+        p3 = index[t_[m_idx], h_[m_idx], (k_[m_idx] + 3) % 4]
+        groups.append(np.stack([m_idx, p1, p3], axis=1))
+    for grp in groups:
+        used = grp >= 0
+        keep = used.sum(axis=1) >= 2
+        grp, used = grp[keep], used[keep]
+        k = len(grp)
+        rr = np.repeat(r + np.arange(k), grp.shape[1])
+        rows.append(rr[used.ravel()])
+        cols.append(grp.ravel()[used.ravel()])
+        vals.append(np.ones(int(used.sum())))
+        lo.append(np.full(k, -np.inf))
+        hi.append(np.ones(k))
+        r += k
+    a = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, nvar)).tocsr()
+    cost = np.zeros(nvar)  # feasibility: a count of moves as objective makes HiGHS slower to a first routing
+    return a, np.concatenate(lo), np.concatenate(hi), cost, (t_, v_, k_, h_)
+
+
+def _solve(lat: Lattice, sv, gv, horizon: int, turns: bool, budget: float):
+    """Vertex of every robot at every step ``(horizon + 1, m)`` for ``horizon`` steps,
+    ``None`` when there is none, ``"unknown"`` when the budget ran out first, or
+    ``"too big"`` above :data:`FLOW_MAX_VARIABLES`."""
+    from scipy.optimize import LinearConstraint, milp
+
+    prog = _program(lat, sv, gv, horizon, turns)
+    if prog is None:
+        return "too big"
+    a, lo, hi, cost, (t_, v_, k_, h_) = prog
+    res = milp(cost, integrality=np.ones(len(cost)), bounds=(0, 1),
+               constraints=LinearConstraint(a, lo, hi), options={"time_limit": max(budget, 0.05), "disp": False})
+    if res.status == 2:  # infeasible
+        return None
+    if res.x is None or res.status != 0:
+        return "unknown"
+    x = res.x > 0.5
+    nxt = {}
+    for t, v, h in zip(t_[x], v_[x], h_[x]):
+        nxt[(int(t), int(v))] = int(h)
+    where = [np.asarray(sv, int)]
+    for t in range(horizon):
+        where.append(np.array([nxt[(t, int(v))] for v in where[-1]]))
+    return np.stack(where)
+
+
+def relaxed_horizon(lat: Lattice, sv: np.ndarray, gv: np.ndarray, top: int, deadline: float) -> int | None:
+    """The fewest steps at which the relaxed flow (:func:`_flow_value`) carries every
+    robot, at most ``top`` (``None`` above it or at the deadline): no routing is shorter."""
+    m = len(sv)
+    if _flow_value(lat, sv, gv, top) < m:
+        return None
+    lo, hi = 1, top
+    while lo < hi:
+        if time.perf_counter() > deadline:
+            return None
+        mid = (lo + hi) // 2
+        if _flow_value(lat, sv, gv, mid) >= m:
+            hi = mid
+        else:
+            lo = mid + 1
+    return hi
+
+
+def flow_route(lat: Lattice, sv: np.ndarray, gv: np.ndarray, deadline: float, turns: bool = False,
+               below: int = 64, budget: float = 8.0) -> list[np.ndarray] | None:
+    """Vertices of every robot after each step of a short routing (as
+    :func:`planner.tswap.tswap` returns them), or ``None`` when none shorter than
+    ``below`` steps (a known routing's) is found within ``budget`` seconds.
+
+    The horizon is searched by bisection between the relaxed bound
+    (:func:`relaxed_horizon`) and ``below - 1``; each integer program gets a
+    quarter of the budget.  A routing, when there is one, is found fast; proving
+    a horizon infeasible can take far longer, so a horizon whose program runs out
+    of time counts as infeasible (the result is the shortest found, not proven
+    shortest)."""
+    t0 = time.perf_counter()
+    end = min(deadline, t0 + budget)
+    if len(sv) == 0 or np.array_equal(np.sort(sv), np.sort(gv)):
+        return []
+    hi = below - 1
+    if hi < 1:
+        return None
+    lo = relaxed_horizon(lat, sv, gv, hi, end)
+    if lo is None:
+        return None
+    best = None
+    while lo <= hi:
+        left = end - time.perf_counter()
+        if left <= 0.05:
+            break
+        mid = (lo + hi) // 2
+        got = _solve(lat, sv, gv, mid, turns, min(left, max(0.5, budget / 4)))
+        if isinstance(got, np.ndarray):
+            best = got
+            hi = mid - 1
+        elif got == "too big":
+            hi = mid - 1  # a shorter horizon is a smaller program
+        else:
+            lo = mid + 1
+    return None if best is None else list(_park(best)[1:])
+
+
+def _park(where: np.ndarray) -> np.ndarray:
+    """Loops cut out of a routing ``(T + 1, m)``: a robot that is back at ``v`` at step
+    ``t2`` after being there at ``t1`` waits at ``v`` instead when no other robot is on
+    ``v`` in between.  Waiting on a vertex nobody else uses breaks none of the step
+    rules (it only removes moves, so no swap or following is added), and the program's
+    routings, having no objective, wander."""
+    w = np.array(where)
+    steps, m = w.shape
+    changed = True
+    while changed:
+        changed = False
+        occ: dict[tuple[int, int], int] = {(t, int(v)): i for t in range(steps) for i, v in enumerate(w[t])}
+        for i in range(m):
+            col = w[:, i]
+            for t1 in range(steps - 2):
+                v = int(col[t1])
+                later = np.nonzero(col[t1 + 2 :] == v)[0]
+                if not len(later):
+                    continue
+                t2 = t1 + 2 + int(later[-1])
+                if all(occ.get((t, v), i) == i for t in range(t1 + 1, t2)) and (col[t1:t2] != v).any():
+                    for t in range(t1 + 1, t2):
+                        occ.pop((t, int(col[t])), None)
+                        occ[(t, v)] = i
+                    col[t1:t2] = v
+                    changed = True
+    return w
