@@ -18,13 +18,27 @@ so the shortest paths of the *visibility graph* over the starts, the targets
 and the corners of the ``O`` inside the box are at most the true shortest
 distances.  Leaving obstacles out, or growing them less, only shortens them.
 
-Visibility is tested against the ``O`` shrunk inward by ``delta = 1e-6 c``
-(shapely's robust ``intersects`` over an STR tree): a segment that does not
-enter the interior of any ``O`` keeps ``delta`` from the shrunk ones, so it
-passes (the test can only admit more segments, which again only shortens
-paths).  Corners that lie inside another shrunk ``O`` are dropped (no
-shortest path can use them).  Every pair of nodes is tested: dropping long
-pairs, as the guide's corner graph does for speed, could lengthen paths.
+Visibility is tested against the ``O`` shrunk inward by ``delta = 1e-6 c``:
+a segment that does not enter the interior of any ``O`` keeps ``delta`` from
+the shrunk ones, so it passes (the test can only admit more segments, which
+again only shortens paths).  A segment is blocked when one of its sample
+points falls in a cell of a raster that lies inside a shrunk ``O`` (a proof
+that it meets one); the rest go to shapely's robust ``intersects`` over an
+STR tree.  Corners that lie inside another shrunk ``O`` are dropped (no
+shortest path can use them).  Only segments that support the polygon at
+each corner end (both neighbours on one side: the taut-string condition)
+are graph edges.
+
+Lengths up to a cap ``T`` only: a path of length at most ``T`` has no segment
+longer than ``T``, so the graph of the segments up to ``T`` and a Dijkstra
+search from each target stopped at ``T`` give every distance up to ``T``
+exactly and tell the others apart as longer.  When the bottleneck of those
+distances (the unknown ones counted as just above ``T``) is at most ``T``,
+it is the bottleneck of the full graph; otherwise ``T`` grows (first
+``1.3`` times the straight-line bottleneck, then by a quarter) up to the whole
+graph (at once when there are at most 1000 corners).  Never dropping a
+segment that a path up to ``T`` could use keeps the result equal to that of
+the whole graph.
 
 The makespan bound is :func:`planner.profile.step_duration` of the
 bottleneck assignment distance over these lengths (the time scaling's
@@ -38,7 +52,7 @@ import time
 
 import numpy as np
 
-from .bounds import _bottleneck
+from .bounds import _bottleneck, _perfect
 from .plan import step_duration
 from .problem import Problem
 
@@ -47,7 +61,16 @@ __all__ = ["geo_distances", "geo_lower_bound"]
 _DELTA = 1e-6  # inward shrink of the inscribed polygons, in units of the clearance
 _CIRCLE_SIDES = 16
 _CHUNK = 20_000  # segments per exact clearance call
-_BLOCK = 8  # corners per block of the via-corner minimum
+_SAMPLES = 2_000_000  # raster samples per step of the blocking filter
+_RASTER_CELLS = 4_000_000  # at most this many raster cells
+_ROWS = 256  # corners per block of the pair search
+_FIRST, _GROW = 1.3, 1.25  # first length cap over the straight bottleneck, and its growth
+_SMALL = 1000  # at most this many corners: no length cap
+
+
+def _check(deadline) -> None:
+    if deadline is not None and time.perf_counter() > deadline:
+        raise TimeoutError("geo lower bound")
 
 
 def _inscribed(problem: Problem) -> list[np.ndarray]:
@@ -86,51 +109,163 @@ def _shrunk(poly: np.ndarray, delta: float) -> np.ndarray:
     return poly - delta * s / (1.0 + (n_in * n).sum(axis=1))[:, None]
 
 
-def _world(problem: Problem, deadline: float | None = None):
-    """``(corners (V, 2), their two polygon neighbours (V, 2, 2), STR tree of the shrunk
-    polygons, corner-corner distances (V, V))`` (cached)."""
-    cached = problem.__dict__.get("_geo_world")
-    if cached is not None:
-        return cached
-    import shapely
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import shortest_path
+class _World:
+    """The corners, their polygon neighbours, the STR tree and raster of the shrunk
+    polygons, and the corner-corner edges found so far (up to length ``reach``)."""
 
-    c = problem.clearance
-    polys = _inscribed(problem)
-    tree = shapely.STRtree([shapely.Polygon(_shrunk(p, _DELTA * c)) for p in polys])
-    if not polys:
-        z = np.zeros((0, 2))
-        cached = (z, np.zeros((0, 2, 2)), tree, np.zeros((0, 0)))
-        problem.__dict__["_geo_world"] = cached
-        return cached
-    nodes = np.concatenate(polys)
-    side = np.concatenate([np.stack([np.roll(p, 1, axis=0), np.roll(p, -1, axis=0)], axis=1) for p in polys])
-    tol = 1e-9 * max(problem.width, problem.height)
-    keep = ((nodes[:, 0] >= c - tol) & (nodes[:, 0] <= problem.width - c + tol)
-            & (nodes[:, 1] >= c - tol) & (nodes[:, 1] <= problem.height - c + tol))
-    hit = tree.query(shapely.points(nodes), predicate="intersects")[0]
-    keep[hit] = False
-    nodes, side = nodes[keep], side[keep]
-    v = len(nodes)
-    keep_i, keep_j = [], []
-    rows = max(1, _CHUNK // max(v, 1))
-    for a0 in range(0, v, rows):  # pairs i < j, a block of rows i at a time
-        if deadline is not None and time.perf_counter() > deadline:
-            raise TimeoutError("geo lower bound")
-        ci, cj = np.nonzero(np.arange(a0, min(a0 + rows, v))[:, None] < np.arange(v)[None])
-        ci += a0
-        t = _tangent(nodes, side, ci, nodes[cj]) & _tangent(nodes, side, cj, nodes[ci])
-        ci, cj = ci[t], cj[t]
-        ok = _clear(tree, nodes[ci], nodes[cj], deadline)
-        keep_i.append(ci[ok])
-        keep_j.append(cj[ok])
-    ci, cj = np.concatenate(keep_i), np.concatenate(keep_j)
-    w = np.linalg.norm(nodes[ci] - nodes[cj], axis=1) + 1e-300
-    g = coo_matrix((np.r_[w, w], (np.r_[ci, cj], np.r_[cj, ci])), shape=(v, v)).tocsr()
-    cached = (nodes, side, tree, shortest_path(g, method="D", directed=False))
-    problem.__dict__["_geo_world"] = cached
-    return cached
+    def __init__(self, problem: Problem) -> None:
+        import shapely
+
+        c = problem.clearance
+        polys = _inscribed(problem)
+        shrunk = [_shrunk(p, _DELTA * c) for p in polys]
+        self.tree = shapely.STRtree([shapely.Polygon(p) for p in shrunk])
+        self.diag = math.hypot(problem.width, problem.height)
+        self.reach = 0.0
+        self.edges: list[np.ndarray] = [np.zeros((0, 3))]
+        self._raster(problem, shrunk)
+        if not polys:
+            self.nodes, self.side = np.zeros((0, 2)), np.zeros((0, 2, 2))
+            return
+        nodes = np.concatenate(polys)
+        side = np.concatenate([np.stack([np.roll(p, 1, axis=0), np.roll(p, -1, axis=0)], axis=1) for p in polys])
+        tol = 1e-9 * max(problem.width, problem.height)
+        keep = ((nodes[:, 0] >= c - tol) & (nodes[:, 0] <= problem.width - c + tol)
+                & (nodes[:, 1] >= c - tol) & (nodes[:, 1] <= problem.height - c + tol))
+        keep[self.tree.query(shapely.points(nodes), predicate="intersects")[0]] = False
+        self.nodes, self.side = nodes[keep], side[keep]
+
+    def _raster(self, problem: Problem, shrunk: list[np.ndarray]) -> None:
+        """``self.full[ix, iy]``: the cell ``[ix h, (ix + 1) h] x [iy h, (iy + 1) h]`` lies
+        inside a shrunk polygon (all four corners strictly inside a convex one)."""
+        h = max(problem.clearance / 2, math.sqrt(problem.width * problem.height / _RASTER_CELLS))
+        nx, ny = max(1, math.ceil(problem.width / h)), max(1, math.ceil(problem.height / h))
+        full = np.zeros((nx, ny), bool)
+        for q in shrunk:
+            x0, y0 = np.clip(np.ceil(q.min(axis=0) / h).astype(int), 0, [nx, ny])
+            x1, y1 = np.clip(np.floor(q.max(axis=0) / h).astype(int), 0, [nx, ny])
+            if x1 <= x0 or y1 <= y0:
+                continue
+            gx, gy = np.meshgrid(np.arange(x0, x1 + 1) * h, np.arange(y0, y1 + 1) * h, indexing="ij")
+            inside = np.ones(gx.shape, bool)
+            e = np.roll(q, -1, axis=0) - q
+            for k in range(len(q)):
+                scale = 1e-9 * (abs(e[k]).sum() + 1.0) * (problem.width + problem.height)
+                inside &= e[k, 0] * (gy - q[k, 1]) - e[k, 1] * (gx - q[k, 0]) > scale
+            full[x0:x1, y0:y1] |= inside[:-1, :-1] & inside[1:, :-1] & inside[:-1, 1:] & inside[1:, 1:]
+        self.h, self.full = h, full
+
+    def sampled_hit(self, a: np.ndarray, b: np.ndarray, step: float) -> np.ndarray:
+        """Segments ``a -> b`` with a sample point (spacing about ``step``) in a full raster
+        cell: they meet a shrunk polygon."""
+        out = np.zeros(len(a), bool)
+        k = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=1) / step)).astype(np.int64)
+        ends = np.cumsum(k)
+        s0 = 0
+        while s0 < len(a):
+            s1 = max(s0 + 1, int(np.searchsorted(ends, ends[s0] - k[s0] + _SAMPLES, side="right")))
+            kk = k[s0:s1]
+            seg = np.repeat(np.arange(s0, s1), kk)
+            t = (np.arange(len(seg)) - np.repeat(np.cumsum(kk) - kk, kk) + 0.5) / k[seg]
+            p = a[seg] + t[:, None] * (b[seg] - a[seg])
+            ix = np.clip((p[:, 0] / self.h).astype(np.int64), 0, self.full.shape[0] - 1)
+            iy = np.clip((p[:, 1] / self.h).astype(np.int64), 0, self.full.shape[1] - 1)
+            out[seg[self.full[ix, iy]]] = True
+            s0 = s1
+        return out
+
+    def clear(self, a: np.ndarray, b: np.ndarray, deadline) -> np.ndarray:
+        """Segments ``a -> b`` that meet none of the shrunk polygons."""
+        import shapely
+
+        ok = np.ones(len(a), bool)
+        for s in range(0, len(a), _CHUNK):
+            _check(deadline)
+            idx = np.arange(s, min(s + _CHUNK, len(a)))
+            for step in (16 * self.h, 4 * self.h):
+                idx = idx[~self.sampled_hit(a[idx], b[idx], step)]
+            ok[s : s + _CHUNK] = False
+            ok[idx] = True
+            if len(idx):
+                hit = self.tree.query(shapely.linestrings(np.stack([a[idx], b[idx]], axis=1)), predicate="intersects")[0]
+                ok[idx[hit]] = False
+        return ok
+
+    def near(self, pts: np.ndarray | None, r0: float, r1: float, deadline):
+        """``(i, k, length)`` of the pairs point ``i`` (or corner ``i < k`` when ``pts`` is
+        None) and corner ``k`` with ``r0 < length <= r1``, tangent at the corners, clear."""
+        from scipy.spatial import cKDTree
+
+        v = len(self.nodes)
+        src = self.nodes if pts is None else pts
+        if v == 0 or len(src) == 0 or r1 <= r0:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        tree = cKDTree(self.nodes)
+        out_i, out_k = [], []
+        for a0 in range(0, len(src), _ROWS):
+            _check(deadline)
+            blk = cKDTree(src[a0 : a0 + _ROWS]).sparse_distance_matrix(tree, min(r1, 2 * self.diag), output_type="ndarray")
+            i, k, d = blk["i"].astype(np.int64) + a0, blk["j"].astype(np.int64), blk["v"]
+            sel = (d > r0) & ((i < k) if pts is None else True)
+            i, k = i[sel], k[sel]
+            t = _tangent(self.nodes, self.side, k, src[i])
+            if pts is None:
+                t &= _tangent(self.nodes, self.side, i, src[k])
+            i, k = i[t], k[t]
+            ok = self.clear(src[i], self.nodes[k], deadline)
+            out_i.append(i[ok])
+            out_k.append(k[ok])
+        i, k = np.concatenate(out_i), np.concatenate(out_k)
+        return i, k, np.linalg.norm(src[i] - self.nodes[k], axis=1)
+
+    def grow(self, r: float, deadline) -> None:
+        """Corner-corner edges up to length ``r``."""
+        if r > self.reach:
+            i, k, w = self.near(None, self.reach, r, deadline)
+            self.edges.append(np.stack([i, k, w], axis=1))
+            self.reach = r
+
+
+def _world(problem: Problem) -> _World:
+    world = problem.__dict__.get("_geo_world")
+    if world is None:
+        world = problem.__dict__["_geo_world"] = _World(problem)
+    return world
+
+
+class _Via:
+    """Shortest start -> corners -> target lengths up to a cap (``inf`` beyond)."""
+
+    def __init__(self, world: _World, starts: np.ndarray, targets: np.ndarray) -> None:
+        self.world, self.starts, self.targets = world, starts, targets
+        self.reach = 0.0
+        self.s_edges: list[tuple] = []
+        self.t_edges: list[tuple] = []
+
+    def lengths(self, cap: float, deadline) -> np.ndarray:
+        """``(m, n)`` lengths up to ``cap`` (exact there, ``inf`` above)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import dijkstra
+
+        w = self.world
+        r = min(cap, 2 * w.diag)  # no segment is longer than the box's diagonal
+        w.grow(r, deadline)
+        if r > self.reach:
+            self.s_edges.append(w.near(self.starts, self.reach, r, deadline))
+            self.t_edges.append(w.near(self.targets, self.reach, r, deadline))
+            self.reach = r
+        v, m, n = len(w.nodes), len(self.starts), len(self.targets)
+        cc = np.concatenate(w.edges)
+        si, sk, sw = (np.concatenate(x) for x in zip(*self.s_edges))
+        ti, tk, tw = (np.concatenate(x) for x in zip(*self.t_edges))
+        a, b = cc[:, 0].astype(np.int64), cc[:, 1].astype(np.int64)
+        rows = np.concatenate([a, b, v + ti, sk])
+        cols = np.concatenate([b, a, tk, v + n + si])
+        wts = np.concatenate([cc[:, 2], cc[:, 2], tw, sw]) + 1e-300  # no explicit zeros
+        g = coo_matrix((wts, (rows, cols)), shape=(v + n + m, v + n + m)).tocsr()
+        _check(deadline)
+        d = dijkstra(g, directed=True, indices=v + np.arange(n), limit=cap)
+        return np.ascontiguousarray(d[:, v + n :].T)
 
 
 def _tangent(nodes: np.ndarray, side: np.ndarray, k: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -146,49 +281,6 @@ def _tangent(nodes: np.ndarray, side: np.ndarray, k: np.ndarray, x: np.ndarray) 
     scale = 1e-12 * (np.abs(d).sum(axis=1) + 1.0) ** 2
     return ~(((ca > scale) & (cb < -scale)) | ((ca < -scale) & (cb > scale)))
 
-
-def _clear(tree, a: np.ndarray, b: np.ndarray, deadline) -> np.ndarray:
-    """Segments ``a -> b`` that meet none of the tree's (shrunk) polygons."""
-    import shapely
-
-    ok = np.ones(len(a), bool)
-    for s in range(0, len(a), _CHUNK):
-        if deadline is not None and time.perf_counter() > deadline:
-            raise TimeoutError("geo lower bound")
-        seg = np.stack([a[s : s + _CHUNK], b[s : s + _CHUNK]], axis=1)
-        hit = tree.query(shapely.linestrings(seg), predicate="intersects")[0]
-        ok[s + hit] = False
-    return ok
-
-
-def _via_corners(problem: Problem, starts, targets, deadline) -> np.ndarray:
-    """``(m, n)`` shortest lengths start -> corners -> target (``inf`` if none)."""
-    nodes, side, tree, dcc = _world(problem, deadline)
-    m, n, v = len(starts), len(targets), len(nodes)
-    if v == 0:
-        return np.full((m, n), np.inf)
-    out = []
-    for pts in (starts, targets):
-        p, k = np.divmod(np.arange(len(pts) * v), v)
-        t = _tangent(nodes, side, k, pts[p])
-        p, k = p[t], k[t]
-        ok = _clear(tree, pts[p], nodes[k], deadline)
-        d = np.full((len(pts), v), np.inf)
-        d[p[ok], k[ok]] = np.linalg.norm(pts[p[ok]] - nodes[k[ok]], axis=1)
-        out.append(d)
-    ds, dt = out
-    # min over first corner a and last corner b of ds[i, a] + dcc[a, b] + dt[j, b], in blocks
-    to_last = np.full((m, v), np.inf)
-    for a0 in range(0, v, _BLOCK):
-        blk = ds[:, a0 : a0 + _BLOCK, None] + dcc[None, a0 : a0 + _BLOCK]  # (m, A, v)
-        np.minimum(to_last, blk.min(axis=1), out=to_last)
-    res = np.full((m, n), np.inf)
-    for b0 in range(0, v, _BLOCK):
-        blk = to_last[:, None, b0 : b0 + _BLOCK] + dt[None, :, b0 : b0 + _BLOCK]  # (m, n, B)
-        np.minimum(res, blk.min(axis=2), out=res)
-    return res
-
-
 def geo_distances(problem: Problem, starts=None, targets=None, deadline: float | None = None) -> np.ndarray:
     """``(len(starts), len(targets))`` shortest lengths in the visibility graph of the
     module (lower bounds on the free-space distances; ``inf`` where it has no path).
@@ -199,10 +291,10 @@ def geo_distances(problem: Problem, starts=None, targets=None, deadline: float |
     direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
     if not problem.obstacles:
         return direct
-    via = _via_corners(problem, starts, targets, deadline)
+    world = _world(problem)
+    via = _Via(world, starts, targets).lengths(math.inf, deadline)
     i, j = np.nonzero(direct < via)
-    _, _, tree, _ = _world(problem)
-    ok = _clear(tree, starts[i], targets[j], deadline)
+    ok = world.clear(starts[i], targets[j], deadline)
     out = via.copy()
     out[i[ok], j[ok]] = direct[i[ok], j[ok]]
     return out
@@ -216,27 +308,44 @@ def _bottleneck_of(d: np.ndarray) -> float:
     return _bottleneck(d, float(d[r, col].max()))
 
 
-def _decisive_distances(problem: Problem, deadline) -> np.ndarray:
-    """:func:`geo_distances` of the problem where they can change the bottleneck, and
-    lower bounds (the smaller of the straight and the via-corner length) elsewhere.
+def _graph_bottleneck(problem: Problem, deadline) -> float:
+    """The bottleneck of :func:`geo_distances` of the problem (``>= 1e300`` when it has no
+    perfect assignment), with the length cap of the module.
 
-    With ``lo`` the bottleneck when every straight segment is taken to be clear and
-    ``hi`` the one over via-corner paths only, the graph's bottleneck lies in
-    ``[lo, hi]``; a pair's straight segment can only decide it when its length is
-    below both the via length and ``hi`` and the via length is above ``lo``.  Only
-    those segments are tested: the bottleneck of the result equals the graph's."""
+    At a cap ``T``, ``via`` (exact up to ``T``) gives ``low``, the via length or ``T+``
+    (just above ``T``) where unknown; ``lo`` the bottleneck of ``min(direct, low)``,
+    ``hi`` the one of the known via lengths.  A pair's straight segment can only
+    decide the bottleneck when ``direct < low``, ``direct <= hi`` and ``low > lo``:
+    only those are tested (the others keep ``min(direct, low)``).  Every entry is
+    then at most the graph's length, and every entry up to the result ``b`` equals a
+    length up to ``b`` when ``b <= T``: ``b`` is the graph's bottleneck."""
     s, t = problem.start, problem.target
     direct = np.linalg.norm(s[:, None] - t[None], axis=2)
     if not problem.obstacles:
-        return direct
-    via = _via_corners(problem, s, t, deadline)
-    low = np.minimum(via, direct)
-    lo, hi = _bottleneck_of(low), _bottleneck_of(via)
-    i, j = np.nonzero((direct < via) & (direct <= hi) & (via > lo))
-    _, _, tree, _ = _world(problem)
-    ok = _clear(tree, s[i], t[j], deadline)
-    low[i[~ok], j[~ok]] = via[i[~ok], j[~ok]]
-    return low
+        return _bottleneck_of(direct)
+    world = _world(problem)
+    via_of = _Via(world, s, t)
+    cap = _FIRST * _bottleneck_of(direct) + 1e-9 * world.diag if len(world.nodes) > _SMALL else math.inf
+    seen = np.zeros(direct.shape, np.int8)  # straight segment: 0 not tested, 1 clear, 2 blocked
+    while True:
+        if cap > 4 * world.diag:
+            cap = math.inf
+        via = via_of.lengths(cap, deadline)
+        low = np.where(np.isinf(via), np.nextafter(cap, math.inf), via)
+        best = np.minimum(direct, low)
+        if not _perfect(best <= cap):  # even the lower bounds need more than the cap
+            cap *= _GROW
+            continue
+        lo, hi = _bottleneck_of(best), _bottleneck_of(via)
+        need = (direct < low) & (direct <= hi) & (low > lo)
+        i, j = np.nonzero(need & (seen == 0))
+        seen[i, j] = np.where(world.clear(s[i], t[j], deadline), 1, 2)
+        i, j = np.nonzero(need & (seen == 2))
+        best[i, j] = low[i, j]
+        b = _bottleneck_of(best)
+        if b <= cap:
+            return b
+        cap = max(_GROW * cap, b if b < 1e299 else 0.0)
 
 
 def geo_lower_bound(problem: Problem, deadline: float | None = None) -> float:
@@ -249,16 +358,7 @@ def geo_lower_bound(problem: Problem, deadline: float | None = None) -> float:
         return cached
     if problem.m == 0:
         return 0.0
-    d = _decisive_distances(problem, deadline)
-    big = np.isinf(d)
-    if big.any():
-        finite = d[~big]
-        d = np.where(big, (finite.max() if len(finite) else 1.0) * 1e6, d)
-    from scipy.optimize import linear_sum_assignment
-
-    r, col = linear_sum_assignment(d)
-    high = float(d[r, col].max())
-    d_star = _bottleneck(d, high)
+    d_star = _graph_bottleneck(problem, deadline)
     bound = math.inf if d_star >= 1e5 * max(problem.width, problem.height) else float(
         step_duration(d_star, problem.max_speed, problem.max_accel))
     problem.__dict__["_geo_lower_bound"] = bound
