@@ -18,7 +18,9 @@ class PlanStats:
     or between a disc and an obstacle or wall, over the whole plan (a plan
     is valid when it is at least the margin).  ``makespan_lower_bound_s`` is
     over straight-line distances, ``makespan_lower_bound_geo_s`` over shortest
-    paths around the obstacles (:mod:`planner.geobound`; NaN when not computed).
+    paths around the obstacles (:mod:`planner.geobound`; NaN when not computed),
+    ``makespan_lower_bound_cut_s`` over robots passing a narrow passage one at a
+    time (:mod:`planner.cutbound`; NaN when no passage applies or not computed).
     """
 
     found: bool = False
@@ -34,6 +36,7 @@ class PlanStats:
     makespan_lower_bound_s: float = float("nan")
     path_length_lower_bound: float = float("nan")
     makespan_lower_bound_geo_s: float = float("nan")  # over shortest paths around obstacles
+    makespan_lower_bound_cut_s: float = float("nan")  # robots through a narrow passage in turn
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
