@@ -8,8 +8,10 @@ the case's process and the median makespan over its lower bound.  A second
 table (the full run, or ``--time-limits`` alone) checks that ``plan``
 returns within ``1.1 time_limit + 0.5 s``: 200 and 1000 random robots,
 lines of 200 and 500 into letters, 60 obstacles and 40 % density with 50
-robots, at time limits of 0.5, 2 and 5 s, three seeds each, wall time
-around the call whether or not a plan was found.
+robots, and 200 robots on the maps room-32-32-4, warehouse-20-40-10-2-2 and
+Berlin_1_256 (:func:`bench.maps.map_problem`, built outside the timed call),
+at time limits of 0.5, 2 and 5 s, three seeds each, wall time around the
+call whether or not a plan was found.
 
 Cases (robot radius 1, margin 0.1, max speed and acceleration 2):
 
@@ -32,6 +34,7 @@ Cases (robot radius 1, margin 0.1, max speed and acceleration 2):
   generator seeded ``[seed, attempt]``).
 * ``door-W``: a wall 2 thick across the middle of a 40 x 40 workspace with
   one door ``W`` wide; 10 robots start left of it and end right of it.
+  ``door-W-m200``: the same in a 60 x 60 workspace with 200 robots.
 * ``unsolvable-*``: a door 0.01 and one 1e-6 narrower than a robot needs
   (2.2), a pocket holding 5 starts and 3 targets, and 1000 robots in two
   halves joined by a door too narrow.
@@ -94,6 +97,8 @@ def _cases() -> tuple[Case, ...]:
             out.append(Case(f"density-{p}-m{m}", "density", m, p, seeds=20 if p == 40 else 10, quick_seeds=3))
     for w in (2.2, 2.6, 3.3, 4.4):
         out.append(Case(f"door-{w:g}", "door", 10, w, seeds=5, quick_seeds=1))
+    for w in (2.2, 2.3, 2.6):  # a crowd through one door: a 60 x 60 workspace
+        out.append(Case(f"door-{w:g}-m200", "door", 200, w, seeds=3, quick_seeds=1))
     out.append(Case("unsolvable-door-2.19", "door", 10, 2.19, seeds=5, quick_seeds=1))
     out.append(Case("unsolvable-door-2.2-1e-6", "door", 10, 2.2 - 1e-6, seeds=5, quick_seeds=1))
     out.append(Case("unsolvable-pocket", "pocket", 20, seeds=5, quick_seeds=1))
@@ -229,7 +234,7 @@ def case_problem(case: Case, seed: int) -> Problem:
         raise ValueError(f"no {case.param:g} % world holds {m} robots")
     if case.kind in ("door", "halves"):
         w = case.param
-        side = 40.0 if case.kind == "door" else math.sqrt(m * math.pi / COVERAGE)
+        side = (40.0 if m <= 10 else 60.0) if case.kind == "door" else math.sqrt(m * math.pi / COVERAGE)
         mid = side / 2
         lo, hi = mid - w / 2, mid + w / 2
         obs = (Polygon([[mid - 1, 0], [mid + 1, 0], [mid + 1, lo], [mid - 1, lo]]),
@@ -320,7 +325,7 @@ def _run_limits(case: Case, seeds: list[int], limits: tuple) -> dict:
     out = []
     for limit in limits:
         for seed in seeds:
-            problem = case_problem(case, seed)
+            problem = _limit_problem(case, seed)
             t0 = time.perf_counter()
             try:
                 plan(problem, PlannerParams(time_limit=limit), np.random.default_rng(seed))
@@ -339,8 +344,11 @@ def _in_child(case: Case, seeds: list[int], time_limit: float, limits=None) -> d
     return in_fresh_process(_run_limits, (case, seeds, limits), timeout)
 
 
-#: The time-limit table: cases, limits [s], seeds per case and limit.
-LIMIT_CASES = ("random-m200", "line-letter-m200", "random-m1000", "line-letter-m500", "clutter-60-m50", "density-40-m50")
+#: The time-limit table: cases, limits [s], seeds per case and limit.  ``map-NAME-mM``: the
+#: MovingAI map ``NAME`` with ``M`` robots (:func:`bench.maps.map_problem`; seed 0 the map's
+#: ``.scen`` agents, others random cells), in this table only.
+LIMIT_CASES = ("random-m200", "line-letter-m200", "random-m1000", "line-letter-m500", "clutter-60-m50", "density-40-m50",
+               "map-room-32-32-4-m200", "map-warehouse-20-40-10-2-2-m200", "map-Berlin_1_256-m200")
 LIMITS = (0.5, 2.0, 5.0)
 LIMIT_SEEDS = 3
 LIMIT_COLUMNS = ["case", "m", "time limit [s]", "runs", "found", "median wall [s]", "max wall [s]",
@@ -352,7 +360,7 @@ def limit_rows(names=LIMIT_CASES, limits=LIMITS, seeds: int = LIMIT_SEEDS) -> li
     limit, each case in a fresh process, wall time around the ``plan`` call."""
     rows = []
     for name in names:
-        case = next(c for c in CASES if c.name == name)
+        case = _limit_case(name)
         result = _in_child(case, list(range(seeds)), max(limits), limits)
         if "error" in result:
             rows.append({"case": name, "m": case.m, "within bar": f"error: {result['error'][:60]}"})
@@ -368,6 +376,22 @@ def limit_rows(names=LIMIT_CASES, limits=LIMITS, seeds: int = LIMIT_SEEDS) -> li
         print(f"  time limits, {name}: " + ", ".join(f"{r['time limit [s]']:g} s -> max {r['max wall [s]']:.2f} s"
                                                     for r in rows if r["case"] == name), file=sys.stderr, flush=True)
     return rows
+
+
+def _limit_case(name: str) -> Case:
+    """The case of a time-limit row: one of :data:`CASES` or a map case (``map-NAME-mM``)."""
+    if name.startswith("map-"):
+        return Case(name, "map", int(name.rsplit("-m", 1)[1]))
+    return next(c for c in CASES if c.name == name)
+
+
+def _limit_problem(case: Case, seed: int) -> Problem:
+    """The problem of a time-limit run (a map case's built by :func:`bench.maps.map_problem`)."""
+    if case.kind == "map":
+        from .maps import map_problem
+
+        return map_problem(case.name[len("map-"):].rsplit("-m", 1)[0], case.m, seed)
+    return case_problem(case, seed)
 
 
 def run_case(case: Case, seeds: list[int], time_limit: float) -> dict:

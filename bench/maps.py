@@ -1,4 +1,4 @@
-"""Planner benchmark on MovingAI grid maps (the "Real maps" issue).
+"""Planner benchmark on MovingAI grid maps.
 
     python -m bench.maps [--maps room-32-32-4 ...] [--counts 20 50 100 200 400] [--seeds N]
                          [--time-limit S] [--no-lacam]

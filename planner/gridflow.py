@@ -205,7 +205,7 @@ def relaxed_horizon(lat: Lattice, sv: np.ndarray, gv: np.ndarray, top: int, dead
     """The fewest steps at which the relaxed flow (:func:`_flow_value`) carries every
     robot, at most ``top`` (``None`` above it or at the deadline): no routing is shorter."""
     m = len(sv)
-    if _flow_value(lat, sv, gv, top) < m:
+    if time.perf_counter() > deadline or _flow_value(lat, sv, gv, top) < m:
         return None
     lo, hi = 1, top
     while lo < hi:
@@ -236,7 +236,8 @@ def flow_route(lat: Lattice, sv: np.ndarray, gv: np.ndarray, deadline: float, tu
     if len(sv) == 0 or np.array_equal(np.sort(sv), np.sort(gv)):
         return []
     hi = below - 1
-    if hi < 1:
+    # the programs grow as vertices x horizon: past the cap even the first would be too big
+    if hi < 1 or lat.n * hi > 2 * FLOW_MAX_VARIABLES or end - time.perf_counter() < 0.2:
         return None
     lo = relaxed_horizon(lat, sv, gv, hi, end)
     if lo is None:

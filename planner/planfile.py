@@ -55,6 +55,7 @@ _STAT_TYPES = {
     "connections": (int,), "steps": (int,), "makespan_s": (int, float), "path_length": (int, float),
     "min_clearance": (int, float), "makespan_lower_bound_s": (int, float),
     "path_length_lower_bound": (int, float), "makespan_lower_bound_geo_s": (int, float),
+    "makespan_lower_bound_cut_s": (int, float),
 }
 
 

@@ -11,7 +11,6 @@ from .bounds import lower_bounds
 from .connect import sequenced_moves
 from .feasibility import feasibility
 from .freespace import free_roadmap_waypoints
-from .geobound import geo_lower_bound
 from .gridstage import detect_grid, grid_plan
 from .guide import Late
 from .lattice import lattice_candidates
@@ -20,7 +19,7 @@ from .plan import Plan, PlanStats
 from .problem import Problem
 from .schedule import merge_steps, shortcut, step_clear
 from .timing import _drop_idle, _makespan, _timed
-from .tries import _Direct, _name_direct
+from .tries import _cut_bound, _Direct, _geo_bound, _name_direct
 from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
 from .validate import PlanInvalid, check_plan
 
@@ -52,16 +51,18 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     # which runs whatever the clock says (about 0.6 s at 1000 robots): a
     # reserve of at most a quarter of the limit.
     deadline = limit - min(0.25 * params.time_limit, _CHECK_S_PER_ROBOT * problem.m)
-    # A plan of one straight step needs no proof that a plan exists (and is cheap to find).
+    # A plan of one straight step needs no proof that a plan exists (and is cheap to find);
+    # on a grid the grid stage goes first (the proof takes about 0.3 s on a 256 x 256 map, a
+    # share of a short limit) and the proof follows only when it found nothing.
     one_step = params.auto and _at_once(problem, problem.start, problem.target) is not None
-    proof = None if one_step else feasibility(problem)
-    if proof is not None:
-        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
-        stats.extra.update(feasible=False, infeasible_reason=proof.reason)
-        raise NoPlanFound(proof.reason, stats)
+    gridded = params.auto and problem.m >= GRID_MIN_ROBOTS and detect_grid(problem) is not None
+    if not (one_step or gridded):
+        _prove(problem, t0)
     memo: dict = {}
     same = _same_set(problem.start, problem.target)
     direct = None if same else _direct(problem, params, memo, deadline, rng)
+    if gridded and not one_step and direct is not None and direct.best is None and time.perf_counter() < deadline:
+        _prove(problem, t0)
     if same:
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
@@ -131,24 +132,20 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         _geo_bound(problem, stats, t0, limit)
     else:
         stats.extra["geo_lower_bound"] = "not computed: grid worlds only (planner.geobound.geo_lower_bound)"
+    _cut_bound(problem, stats, t0, limit)
     stats.planning_time_s = time.perf_counter() - t0
     result = Plan(result.radius, result.margin, result.durations, result.waypoints,
                   result.max_speed, result.max_accel, stats)
     return result, stats
 
 
-def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> None:
-    """The obstacle-respecting makespan bound (:mod:`planner.geobound`) into the stats,
-    within at most a quarter of the time used so far (at least 0.2 s) and the time
-    limit; otherwise NaN and ``stats.extra["geo_lower_bound"]`` says why."""
-    now = time.perf_counter()
-    try:
-        stats.makespan_lower_bound_geo_s = geo_lower_bound(
-            problem, deadline=min(limit, now + max(0.2, 0.25 * (now - t0))))
-    except TimeoutError:
-        stats.extra["geo_lower_bound"] = "not computed: out of its time budget"
-    except Exception as exc:  # a statistic only: never worth losing a plan over
-        stats.extra["geo_lower_bound"] = f"not computed: {type(exc).__name__}: {exc}"
+def _prove(problem: Problem, t0: float) -> None:
+    """Raise :class:`NoPlanFound` (``feasible=False``) when :func:`feasibility` proves no plan exists."""
+    proof = feasibility(problem)
+    if proof is not None:
+        stats = PlanStats(planning_time_s=time.perf_counter() - t0)
+        stats.extra.update(feasible=False, infeasible_reason=proof.reason)
+        raise NoPlanFound(proof.reason, stats)
 
 
 def _plan_inflated(problem: Problem, params: PlannerParams, rng):

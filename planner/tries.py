@@ -1,17 +1,23 @@
-"""What auto mode's direct tries found (:class:`_Direct`), and how the stats
-name the try that made the plan (see :func:`planner.planning._direct`)."""
+"""What auto mode's direct tries found (:class:`_Direct`), how the stats
+name the try that made the plan (see :func:`planner.planning._direct`), and the
+obstacle-respecting bound of :func:`planner.plan`'s grid plans."""
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 from .bounds import lower_bounds
+from .cutbound import cut_lower_bound
+from .geobound import geo_lower_bound
 from .passages import passage_points
 from .plan import PlanStats
 from .problem import Problem
 from .upump import _GOOD_ENOUGH
 
 __all__ = []
+
+_GEO_MIN_S = 0.1  # the least time left for the obstacle-respecting bound to start [s]
 
 
 def _name_direct(stats: PlanStats, label: str) -> None:
@@ -58,3 +64,38 @@ class _Direct:
         if self.best is None:
             return False
         return not len(passage_points(problem)) or self.best[2] <= _GOOD_ENOUGH[-1] * lower_bounds(problem)[0]
+
+
+def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> None:
+    """The obstacle-respecting makespan bound (:mod:`planner.geobound`) into the stats,
+    within at most a quarter of the time used so far (at least 0.2 s) and the time
+    limit; otherwise NaN and ``stats.extra["geo_lower_bound"]`` says why (also when
+    less than :data:`_GEO_MIN_S` of the limit is left: its setup alone takes that)."""
+    now = time.perf_counter()
+    if limit - now < _GEO_MIN_S:
+        stats.extra["geo_lower_bound"] = (f"not computed: {max(limit - now, 0.0):.2g} s of the time "
+                                          f"limit was left, under {_GEO_MIN_S:g} s")
+        return
+    try:
+        stats.makespan_lower_bound_geo_s = geo_lower_bound(
+            problem, deadline=min(limit, now + max(0.2, 0.25 * (now - t0))))
+    except TimeoutError:
+        stats.extra["geo_lower_bound"] = "not computed: out of its time budget"
+    except Exception as exc:  # a statistic only: never worth losing a plan over
+        stats.extra["geo_lower_bound"] = f"not computed: {type(exc).__name__}: {exc}"
+
+
+def _cut_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> None:
+    """The narrow-passage bound (:mod:`planner.cutbound`) into the stats where the world
+    has a passage one robot wide (:func:`planner.passages.passage_points`, cached by the
+    stages), within a quarter of the time used so far (at least 0.05 s) and the limit."""
+    if not problem.obstacles or not len(passage_points(problem)):
+        return
+    now = time.perf_counter()
+    if limit - now < _GEO_MIN_S:
+        stats.extra["cut_lower_bound"] = "not computed: the time limit came first"
+        return
+    try:
+        stats.makespan_lower_bound_cut_s = cut_lower_bound(problem, deadline=min(limit, now + max(0.05, 0.25 * (now - t0))))
+    except Exception as exc:  # a statistic only
+        stats.extra["cut_lower_bound"] = f"not computed: {type(exc).__name__}: {exc}"
