@@ -86,10 +86,12 @@ def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> N
 
 
 def _cut_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> None:
-    """The narrow-passage bound (:mod:`planner.cutbound`) into the stats where the world
-    has a passage one robot wide (:func:`planner.passages.passage_points`, cached by the
-    stages), within a quarter of the time used so far (at least 0.05 s) and the limit."""
-    if not problem.obstacles or not len(passage_points(problem)):
+    """The narrow-passage bound (:mod:`planner.cutbound`) into the stats, within a quarter
+    of the time used so far (at least 0.05 s) and the limit; skipped where the stages
+    already found no passage one robot wide (:func:`planner.passages.passage_points`,
+    cached; finding them afresh takes seconds on large maps)."""
+    lanes = problem.__dict__.get("_lanes_4")
+    if not problem.obstacles or (lanes is not None and not len(lanes)):
         return
     now = time.perf_counter()
     if limit - now < _GEO_MIN_S:

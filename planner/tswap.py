@@ -23,7 +23,7 @@ def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | 
     g = coo_matrix((np.ones(int(ok.sum())), (v[ok], w[ok])), shape=(lat.n, lat.n)).tocsr()
     dtype = np.int16 if lat.n < 30_000 else np.int32
     out = np.empty((len(sources), lat.n), dtype)
-    chunk = max(1, min(128, 4_000_000 // max(lat.n, 1)))  # small chunks: the deadline is checked between
+    chunk = max(1, min(128, 1_000_000 // max(lat.n, 1)))  # small chunks: the deadline is checked between
     for s in range(0, len(sources), chunk):
         if time.perf_counter() > deadline:
             return None
