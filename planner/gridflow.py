@@ -38,7 +38,7 @@ from .grid import Lattice
 __all__ = ["FLOW_MAX_VARIABLES", "flow_route", "grid_distances", "relaxed_horizon"]
 
 #: Largest integer program tried (variables); above it the grid stage keeps TSWAP.
-FLOW_MAX_VARIABLES = 150_000
+FLOW_MAX_VARIABLES = 50_000
 
 
 

@@ -39,7 +39,7 @@ lattice stage's lattice (:mod:`planner.lattice`) but the natural graph.
    when about half the vertices are taken.  Where the time-expanded graph
    is small enough, the routing with the fewest steps under the same rules
    is then sought as an integer program (:func:`planner.gridflow.flow_route`)
-   below TSWAP's count, within :data:`FLOW_BUDGET_S`, a third of the time
+   below TSWAP's count (from :data:`FLOW_MIN_ROBOTS` robots on), within :data:`FLOW_BUDGET_S`, a third of the time
    left and ``0.5 + 1e-4 m^2`` seconds (1.5 s at 100 robots, 16.5 s at 400: TSWAP is
    close to the shortest routing when few vertices are taken), and kept when its plan
    is shorter.
@@ -57,8 +57,8 @@ from .grid import Lattice, grid_graph
 from .problem import Problem
 from .tswap import tswap
 
-__all__ = ["FLOW_BUDGET_S", "GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "grid_plan", "grid_waypoints",
-           "step_separated"]
+__all__ = ["FLOW_BUDGET_S", "FLOW_MIN_ROBOTS", "GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "grid_plan",
+           "grid_waypoints", "step_separated"]
 
 _TOL = 1e-9
 _MAX_VERTICES = 400_000
@@ -130,6 +130,8 @@ GRID_TRIES = 8
 GRID_BUDGET_S = 1.5
 #: Seconds the shortest-routing search (:mod:`planner.gridflow`) may take at most.
 FLOW_BUDGET_S = 20.0
+#: Fewer robots than this leave TSWAP's routing as it is (within a step or two of the shortest).
+FLOW_MIN_ROBOTS = 40
 
 
 def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
@@ -160,7 +162,7 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
         span = _makespan(problem, w)
         if best is None or span < best[2]:
             best = (w, len(raw) - 1, span)
-    if best is not None and best[1] > 1:
+    if best is not None and best[1] > 1 and problem.m >= FLOW_MIN_ROBOTS:
         left = deadline - time.perf_counter()
         budget = min(FLOW_BUDGET_S, left / 3, 0.5 + 1e-4 * problem.m**2)
         raw = grid_waypoints(problem, deadline, grid, flow=(best[1], budget))
