@@ -187,6 +187,8 @@ LATTICE_MIN_ROBOTS = 60
 #: right after the one-step try when every start and target lies on one square grid.
 GRID_MIN_ROBOTS = 12
 
+DENSE_COVERAGE = 0.3  #: robots' discs over an obstacle-free workspace from which the packing stage (planner.dense) runs
+
 #: From this many robots on, auto mode does not build the pebble-graph roadmap when its
 #: direct tries found nothing: its interference graphs grow with the square of the
 #: candidate pairs (gigabytes at 1000 robots) and it never connected such problems.
@@ -241,6 +243,15 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
                 out.offer("grid", sequential, (w, sequential, _makespan(problem, w)))
                 out.accepted = True
                 return out
+    if (not problem.obstacles and problem.m * np.pi * problem.radius**2 >= DENSE_COVERAGE * problem.width * problem.height
+            and time.perf_counter() < deadline):
+        from .dense import dense_plan  # packings too dense for the other stages
+        found_plan = dense_plan(problem, deadline - time.perf_counter(), rng)
+        if found_plan is not None:
+            w = np.asarray(found_plan.waypoints)
+            out.offer("dense", len(w) - 1, (w, len(w) - 1, found_plan.makespan))
+            out.accepted = True
+            return out
     if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
         _lattice(problem, out, deadline)
         if out.best is not None:
