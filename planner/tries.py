@@ -17,6 +17,7 @@ from .upump import _GOOD_ENOUGH
 
 __all__ = []
 
+_CUT_MIN_ROBOTS = 10  # fewer robots queue briefly: the bound adds little and would slow small plans by a quarter
 _GEO_MIN_S = 0.1  # the least time left for the obstacle-respecting bound to start [s]
 
 
@@ -86,12 +87,13 @@ def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> N
 
 
 def _cut_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> None:
-    """The narrow-passage bound (:mod:`planner.cutbound`) into the stats, within a quarter
+    """The narrow-passage bound (:mod:`planner.cutbound`) into the stats (from
+    :data:`_CUT_MIN_ROBOTS` robots), within a quarter
     of the time used so far (at least 0.05 s) and the limit; skipped where the stages
     already found no passage one robot wide (:func:`planner.passages.passage_points`,
     cached; finding them afresh takes seconds on large maps)."""
     lanes = problem.__dict__.get("_lanes_4")
-    if not problem.obstacles or (lanes is not None and not len(lanes)):
+    if problem.m < _CUT_MIN_ROBOTS or not problem.obstacles or (lanes is not None and not len(lanes)):
         return
     now = time.perf_counter()
     if limit - now < _GEO_MIN_S:
