@@ -184,7 +184,10 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
     if grid is None:
         return None
     offset, c = grid
-    built = build_grid(problem, offset, c)
+    key = ("_grid_graph", tuple(np.asarray(offset, float)), float(c))
+    if key not in problem.__dict__:  # every try and the shortest-routing search use the same graph
+        problem.__dict__[key] = build_grid(problem, offset, c)
+    built = problem.__dict__[key]
     if built is None:
         return None
     lat, _, vid = built
