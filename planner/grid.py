@@ -56,14 +56,15 @@ def build_lattice(problem: Problem, spacing: float, shift: tuple[float, float] =
 
 
 def grid_graph(problem: Problem, pts: np.ndarray, nx: int, ny: int,
-               spacing: float) -> tuple[Lattice, np.ndarray, np.ndarray]:
+               spacing: float, clearance: float | None = None) -> tuple[Lattice, np.ndarray, np.ndarray]:
     """The clear points of the ``(nx, ny)`` grid ``pts`` (x-major) and their clear
     4-neighbour edges (both exact) as a :class:`Lattice`, with the mask of clear grid
-    points and the ``(nx, ny)`` table of vertex ids (-1: not a vertex)."""
+    points and the ``(nx, ny)`` table of vertex ids (-1: not a vertex).  ``clearance``:
+    the least distance to the obstacles and walls (default: radius + margin)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    c = problem.clearance
+    c = problem.clearance if clearance is None else clearance
     ok = problem.env.points_clear(pts, c)
     vid = np.full(nx * ny, -1)
     vid[ok] = np.arange(int(ok.sum()))

@@ -9,17 +9,17 @@ from scipy.optimize import linear_sum_assignment
 
 from .bounds import lower_bounds
 from .connect import sequenced_moves
+from .conveyor import DOOR_MIN_ROBOTS
 from .feasibility import feasibility
 from .freespace import free_roadmap_waypoints
 from .gridstage import detect_grid, grid_plan
 from .guide import Late
-from .lattice import lattice_candidates
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
 from .schedule import merge_steps, shortcut, step_clear
 from .timing import _drop_idle, _makespan, _timed
-from .tries import _cut_bound, _Direct, _geo_bound, _name_direct
+from .tries import _cut_bound, _Direct, _door, _geo_bound, _lattice, _name_direct
 from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
 from .validate import PlanInvalid, check_plan
 
@@ -252,6 +252,9 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             out.offer("dense", len(w) - 1, (w, len(w) - 1, found_plan.makespan))
             out.accepted = True
             return out
+    if (problem.m >= DOOR_MIN_ROBOTS and 0 < len(problem.obstacles) < CLUTTER and time.perf_counter() < deadline
+            and _door(problem, out, deadline)):  # a crowd through a door one robot wide: trains
+        return out
     if problem.m >= LATTICE_MIN_ROBOTS and time.perf_counter() < deadline:
         _lattice(problem, out, deadline)
         if out.best is not None:
@@ -286,28 +289,6 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
     if problem.obstacles and out.best is None:  # nothing yet: before the pebble-graph roadmap
         _free_space(problem, out, bound, deadline, rng)
     return out
-
-
-#: A lattice plan within this factor of the makespan bound ends the search over lattices.
-LATTICE_GOOD = 2.5
-
-
-def _lattice(problem: Problem, out: _Direct, deadline: float) -> None:
-    """Offer the shortest lattice plan (:mod:`planner.lattice`): after the first that
-    works, other shifts and spacings are tried while the best is over
-    :data:`LATTICE_GOOD` times the bound, the lattice has used less than 4.5 times what
-    the first took, and another such try would use under a quarter of the time left."""
-    t0 = time.perf_counter()
-    first = None
-    for raw in lattice_candidates(problem, deadline):
-        w = merge_steps(problem, _drop_idle(raw), deadline)
-        out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
-        now = time.perf_counter()
-        first = first if first is not None else now - t0
-        # (the bound, about a second at 1000 robots, only when another try could follow)
-        if (now > deadline or now - t0 > 4.5 * first or first > 0.25 * (deadline - now)
-                or out.best[2] <= LATTICE_GOOD * lower_bounds(problem)[0]):
-            return
 
 
 def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, rng) -> None:

@@ -1,6 +1,7 @@
-"""What auto mode's direct tries found (:class:`_Direct`), how the stats
-name the try that made the plan (see :func:`planner.planning._direct`), and the
-obstacle-respecting bound of :func:`planner.plan`'s grid plans."""
+"""What auto mode's direct tries found (:class:`_Direct`), two of its tries
+(the lattice and the door stage), how the stats name the try that made the plan
+(see :func:`planner.planning._direct`), and the obstacle-respecting and
+narrow-passage bounds of :func:`planner.plan`'s plans."""
 
 from __future__ import annotations
 
@@ -10,9 +11,12 @@ from dataclasses import dataclass, field
 from .bounds import lower_bounds
 from .cutbound import cut_lower_bound
 from .geobound import geo_lower_bound
+from .lattice import lattice_candidates
 from .passages import passage_points
 from .plan import PlanStats
 from .problem import Problem
+from .schedule import merge_steps
+from .timing import _drop_idle, _makespan
 from .upump import _GOOD_ENOUGH
 
 __all__ = []
@@ -103,3 +107,39 @@ def _cut_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> N
         stats.makespan_lower_bound_cut_s = cut_lower_bound(problem, deadline=min(limit, now + max(0.05, 0.25 * (now - t0))))
     except Exception as exc:  # a statistic only
         stats.extra["cut_lower_bound"] = f"not computed: {type(exc).__name__}: {exc}"
+
+
+#: A lattice plan within this factor of the makespan bound ends the search over lattices.
+LATTICE_GOOD = 2.5
+
+
+def _lattice(problem: Problem, out: _Direct, deadline: float) -> None:
+    """Offer the shortest lattice plan (:mod:`planner.lattice`): after the first that
+    works, other shifts and spacings are tried while the best is over
+    :data:`LATTICE_GOOD` times the bound, the lattice has used less than 4.5 times what
+    the first took, and another such try would use under a quarter of the time left."""
+    t0 = time.perf_counter()
+    first = None
+    for raw in lattice_candidates(problem, deadline):
+        w = merge_steps(problem, _drop_idle(raw), deadline)
+        out.offer("lattice", len(raw) - 1, (w, len(raw) - 1, _makespan(problem, w)))
+        now = time.perf_counter()
+        first = first if first is not None else now - t0
+        # (the bound, about a second at 1000 robots, only when another try could follow)
+        if (now > deadline or now - t0 > 4.5 * first or first > 0.25 * (deadline - now)
+                or out.best[2] <= LATTICE_GOOD * lower_bounds(problem)[0]):
+            return
+
+
+def _door(problem: Problem, out: _Direct, deadline: float) -> bool:
+    """Offer the door stage's plan (:mod:`planner.conveyor`); whether it found one (which
+    ends the search: the other stages move one robot through at a time)."""
+    from .conveyor import door_plan
+
+    found = door_plan(problem, deadline)
+    if found is None:
+        return False
+    w, raw = found
+    out.offer("door", raw, (w, raw, _makespan(problem, w)))
+    out.accepted = True
+    return True

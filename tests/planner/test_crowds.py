@@ -146,12 +146,13 @@ def _fake_lattices(problem, detours):
 
 def test_lattice_keeps_the_shortest_shift(monkeypatch):
     import planner.planning as planning
+    import planner.tries as tries
 
     p = _two_robots()
-    monkeypatch.setattr(planning, "LATTICE_GOOD", 0.5)  # never good enough: every try runs
-    monkeypatch.setattr(planning, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
+    monkeypatch.setattr(tries, "LATTICE_GOOD", 0.5)  # never good enough: every try runs
+    monkeypatch.setattr(tries, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
     out = planning._Direct()
-    planning._lattice(p, out, time.perf_counter() + 30)
+    tries._lattice(p, out, time.perf_counter() + 30)
     spans = [planning._makespan(p, planning.merge_steps(p, w, None)) for w in _fake_lattices(p, [8, 0.5, 6])]
     assert out.best[2] == pytest.approx(min(spans)) and min(spans) < spans[0]
 
@@ -159,12 +160,13 @@ def test_lattice_keeps_the_shortest_shift(monkeypatch):
 def test_lattice_stops_at_a_good_enough_plan(monkeypatch):
     """Negative control of the above: within LATTICE_GOOD of the bound, the first is kept."""
     import planner.planning as planning
+    import planner.tries as tries
 
     p = _two_robots()
-    monkeypatch.setattr(planning, "LATTICE_GOOD", 100.0)
-    monkeypatch.setattr(planning, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
+    monkeypatch.setattr(tries, "LATTICE_GOOD", 100.0)
+    monkeypatch.setattr(tries, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
     out = planning._Direct()
-    planning._lattice(p, out, time.perf_counter() + 30)
+    tries._lattice(p, out, time.perf_counter() + 30)
     first = planning._makespan(p, planning.merge_steps(p, next(_fake_lattices(p, [8])), None))
     assert out.best[2] == pytest.approx(first)
 
