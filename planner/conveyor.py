@@ -166,9 +166,10 @@ class _Side:
         return all(self.edge(i, 0, 0) for i in range(lo, hi))
 
 
-def _layout(a: _Side, b: _Side, ia: int, ib: int, m: int, problem: Problem):
+def _layout(a: _Side, b: _Side, ia: int, ib: int, m: int, problem: Problem, above: float = 0.5):
     """``(k, cells of the starts' block (m, 2), rows up and down on the targets' side)``
-    minimising the estimated train time, or ``None``."""
+    minimising the estimated train time, or ``None``.  ``above``: the share of the
+    starts on the side of row 0 the rows up are (the block's halves follow it)."""
     from .profile import step_duration
 
     c = a.c
@@ -193,7 +194,7 @@ def _layout(a: _Side, b: _Side, ia: int, ib: int, m: int, problem: Problem):
     _, k, la, lb, ra, rb = best
     nb = -(-m // k)
     # balanced halves on the starts' side; the partial row farthest out, nearest the door
-    up = min(la, max(nb - 1 - lb, nb // 2))
+    up = min(la, max(nb - 1 - lb, round((nb - 1) * above)))
     down = nb - 1 - up
     cells = []
     for j in [0] + list(range(1, up + 1)) + list(range(-1, -down - 1, -1)):
@@ -204,9 +205,10 @@ def _layout(a: _Side, b: _Side, ia: int, ib: int, m: int, problem: Problem):
     return k, np.array(full + partial), ra, rb
 
 
-def _trains(cells: np.ndarray, k: int, ia: int, ib: int, ra: int, rb: int):
+def _trains(cells: np.ndarray, k: int, ia: int, ib: int, ra: int, rb: int, above: float = 0.5):
     """``(grid positions (m, 2), on the targets' side (m,))`` after every train and
-    refill step, from ``cells`` (all on the starts' side)."""
+    refill step, from ``cells`` (all on the starts' side).  ``above``: the share of the
+    targets on the side of row 0 the rows up are (the arrived rows follow it)."""
     pos = np.array(cells, int)
     side = np.zeros(len(pos), bool)  # on the targets' side
     move = ib - (ia - k + 1)  # column offset of a train, from one grid to the other
@@ -231,7 +233,9 @@ def _trains(cells: np.ndarray, k: int, ia: int, ib: int, ra: int, rb: int):
         pos[half, 1] += dj
         room_up = ra - pos[side & (pos[:, 1] > 0), 1].max(initial=0)
         room_down = rb + pos[side & (pos[:, 1] < 0), 1].min(initial=0)
-        go_up = (turn % 2 == 0 and room_up > 0) or room_down <= 0
+        rows_up = pos[side & (pos[:, 1] > 0), 1].max(initial=0)
+        rows_down = -pos[side & (pos[:, 1] < 0), 1].min(initial=0)
+        go_up = (rows_up < above * (rows_up + rows_down + 1) and room_up > 0) or room_down <= 0
         if (room_up if go_up else room_down) <= 0:
             return None
         r_half = side & ((pos[:, 1] >= 0) if go_up else (pos[:, 1] <= 0))
@@ -285,7 +289,7 @@ def door_waypoints(problem: Problem, deadline: float, c: float | None = None) ->
     b, leave, tv, ib = got_b
     if b.u(ib) - a.u(ia) < c * (1 - 1e-9):
         return None
-    lay = _layout(a, b, ia, ib, problem.m, problem)
+    lay = _layout(a, b, ia, ib, problem.m, problem, float(np.mean((problem.start - o) @ v > 0)))
     if lay is None:
         return None
     k, cells, ra, rb = lay
@@ -297,7 +301,8 @@ def door_waypoints(problem: Problem, deadline: float, c: float | None = None) ->
         return None
     at_block = gather[-1] if gather else sv
     index = {int(x): n for n, x in enumerate(block_v)}
-    trains = _trains(cells[[index[int(x)] for x in at_block]], k, ia, ib, ra, rb)
+    trains = _trains(cells[[index[int(x)] for x in at_block]], k, ia, ib, ra, rb,
+                     float(np.mean((problem.target - o) @ v > 0)))
     if trains is None:
         return None
     end_v = b.v(trains[-1][0][:, 0], trains[-1][0][:, 1])
