@@ -166,9 +166,11 @@ class _Side:
         return all(self.edge(i, 0, 0) for i in range(lo, hi))
 
 
-def _layout(a: _Side, b: _Side, ia: int, ib: int, m: int, problem: Problem, above: float = 0.5):
+def _layout(a: _Side, b: _Side, ia: int, ib: int, m: int, problem: Problem, above: float = 0.5,
+            longest: bool = False):
     """``(k, cells of the starts' block (m, 2), rows up and down on the targets' side)``
-    minimising the estimated train time, or ``None``.  ``above``: the share of the
+    minimising the estimated train time (``longest``: with the longest trains), or
+    ``None``.  ``above``: the share of the
     starts on the side of row 0 the rows up are (the block's halves follow it)."""
     from .profile import step_duration
 
@@ -187,7 +189,7 @@ def _layout(a: _Side, b: _Side, ia: int, ib: int, m: int, problem: Problem, abov
         span = gap + (k - 1) * c
         t = nb * float(step_duration(span, problem.max_speed, problem.max_accel)) + (nb - 1) * float(
             step_duration(c, problem.max_speed, problem.max_accel))
-        if best is None or t < best[0]:
+        if best is None or t < best[0] or longest:
             best = (t, k, la, lb, ra, rb)
     if best is None:
         return None
@@ -269,7 +271,8 @@ def _snapped(problem: Problem, o, u, v, c: float, placement: np.ndarray, step: i
 _SHIFTS = (0.0, 0.5, 0.25, 0.75, 0.125, 0.625, 0.375, 0.875)
 
 
-def door_waypoints(problem: Problem, deadline: float, c: float | None = None) -> np.ndarray | None:
+def door_waypoints(problem: Problem, deadline: float, c: float | None = None, longest: bool = False,
+                   follow: bool = True) -> np.ndarray | None:
     """Raw waypoints ``(K + 1, m, 2)`` of the door stage, or ``None`` (see the module)."""
     from .gridstage import step_separated
     from .tswap import tswap
@@ -289,7 +292,8 @@ def door_waypoints(problem: Problem, deadline: float, c: float | None = None) ->
     b, leave, tv, ib = got_b
     if b.u(ib) - a.u(ia) < c * (1 - 1e-9):
         return None
-    lay = _layout(a, b, ia, ib, problem.m, problem, float(np.mean((problem.start - o) @ v > 0)))
+    share = (lambda pts: float(np.mean((pts - o) @ v > 0))) if follow else (lambda pts: 0.5)
+    lay = _layout(a, b, ia, ib, problem.m, problem, share(problem.start), longest)
     if lay is None:
         return None
     k, cells, ra, rb = lay
@@ -302,7 +306,7 @@ def door_waypoints(problem: Problem, deadline: float, c: float | None = None) ->
     at_block = gather[-1] if gather else sv
     index = {int(x): n for n, x in enumerate(block_v)}
     trains = _trains(cells[[index[int(x)] for x in at_block]], k, ia, ib, ra, rb,
-                     float(np.mean((problem.target - o) @ v > 0)))
+                     share(problem.target))
     if trains is None:
         return None
     end_v = b.v(trains[-1][0][:, 0], trains[-1][0][:, 1])
@@ -344,17 +348,21 @@ def door_waypoints(problem: Problem, deadline: float, c: float | None = None) ->
 
 
 def door_plan(problem: Problem, deadline: float) -> tuple[np.ndarray, int] | None:
-    """``(merged waypoints, raw steps)`` of the shortest door-stage plan over a few grid
-    spacings and shifts, or ``None``."""
+    """``(merged waypoints, raw steps)`` of the shortest door-stage plan over two grid
+    spacings, with the blocks' halves sized by where the robots are or equal, or
+    ``None``.  Tries after the first run while they use under a third of the time left."""
     from .merge import merge_steps
     from .timing import _drop_idle, _makespan
 
     best = None
     sep = problem.separation
-    for c in (sep * (1 + 1e-6), sep * 1.05):
-        if time.perf_counter() > deadline:
+    t0 = time.perf_counter()
+    for n, (c, follow) in enumerate(((sep * (1 + 1e-6), True), (sep * (1 + 1e-6), False),
+                                     (sep * 1.05, True), (sep * 1.05, False))):
+        now = time.perf_counter()
+        if now > deadline or (best is not None and (now - t0) / n > (deadline - now) / 3):
             break
-        raw = door_waypoints(problem, deadline, c)
+        raw = door_waypoints(problem, deadline, c, follow=follow)
         if raw is None:
             continue
         w = merge_steps(problem, _drop_idle(list(raw)), deadline)
