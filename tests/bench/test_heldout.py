@@ -96,6 +96,12 @@ def test_judge_and_cases():
     assert heldout.judge(case, {"ok": True, "time_s": 1.0, "x_geo": 2.1}, 60)[1] == "no"
     assert heldout.judge(case, {"ok": True, "time_s": 1.0, "x_geo": math.nan}, 60)[1] == "?"
     assert heldout.judge(case, {"ok": False, "time_s": 1.0}, 60)[1] == "no"
+    door = next(c for c in heldout.CASES if c.name == "door-2.2-m200")
+    assert heldout.judge(door, {"ok": True, "x_cut": 2.9}, 60)[1] == "yes"
+    assert heldout.judge(door, {"ok": True, "x_cut": 3.1}, 60)[1] == "no"
+    assert heldout.judge(door, {"ok": False}, 60)[1] == "no"
+    wider = next(c for c in heldout.CASES if c.name == "door-2.6-m200")
+    assert heldout.judge(wider, {"ok": True, "x_cut": 4.0}, 60)[1] == "yes"  # solved is the target there
 
 
 def test_help_runs(capsys):
