@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .boxes import BoxIndex, _box_gap_ok, _boxes_near, _segment_edge_close
+from .nearest import fold_near
 from .pointsets import greedy_separated
 
 __all__ = [
@@ -145,6 +146,7 @@ def _fold_min(best, who, d, ids):
 _CHUNK = 1 << 21  # entries of a (rows x obstacle features) temporary
 _PIECES_PER_CALL = 200_000  # segment pieces met with the box index in one KD-tree query
 _DENSE_PAIRS = 1 << 17  # up to this many (query, box) pairs the dense box test is used
+_NEAR_PAIRS = 1 << 22  # above this many (query, edge) pairs the clearance details use near edges only
 
 
 def _rows_per_chunk(width: int) -> int:
@@ -270,13 +272,17 @@ class Environment(BoxIndex):
         x, y = p[..., 0], p[..., 1]
         return np.minimum(np.minimum(x, self.width - x), np.minimum(y, self.height - y))
 
-    def point_clearance_detail(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Clearance of each point and what attains it (obstacle index, -1 = wall)."""
+    def point_clearance_detail(self, points: np.ndarray, polygons: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Clearance of each point and what attains it (obstacle index, -1 = wall);
+        ``polygons=False``: walls and circles only."""
         pts = np.asarray(points, float).reshape(-1, 2)
-        width = len(self.circle_radii) + len(self.edges[0])
+        if polygons and self.polygons and len(pts) * len(self.edges[0]) > _NEAR_PAIRS:
+            best, who = self.point_clearance_detail(pts, polygons=False)
+            return fold_near(self, best, who, pts, None, (point_segment_distance, _crossing))
+        width = len(self.circle_radii) + (len(self.edges[0]) if polygons else 0)
         rows = _rows_per_chunk(width)
         if len(pts) > rows:
-            parts = [self.point_clearance_detail(pts[r : r + rows]) for r in range(0, len(pts), rows)]
+            parts = [self.point_clearance_detail(pts[r : r + rows], polygons) for r in range(0, len(pts), rows)]
             return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         n = len(pts)
         best = self.wall_clearance(pts)
@@ -287,7 +293,7 @@ class Environment(BoxIndex):
                 - self.circle_radii[None]
             )
             best, who = _fold_min(best, who, d, self.circle_ids)
-        if self.polygons and n:
+        if polygons and self.polygons and n:
             a, b, _ = self.edges
             d = point_segment_distance(pts[:, None, :], a[None], b[None])  # (n, E)
             dp = np.minimum.reduceat(d, self.edge_starts, axis=1)  # (n, P)
@@ -345,7 +351,7 @@ class Environment(BoxIndex):
                 ok[check] = ~self._inside(a[check]).any(axis=1)
         return ok
 
-    def segment_clearance_detail(self, a: np.ndarray, b: np.ndarray):
+    def segment_clearance_detail(self, a: np.ndarray, b: np.ndarray, polygons: bool | str = True):
         """Exact minimum clearance along segments ``a -> b`` and what attains it.
 
         ``a`` and ``b`` are ``(N, 2)``; returns ``(clearance (N,), who (N,))``
@@ -354,13 +360,18 @@ class Environment(BoxIndex):
         minimum is at an end.  Circles: point-to-segment distance of the
         centre, minus the radius.  Polygons: segment-to-polygon set distance
         (0 when the segment enters the polygon, which an end point inside or
-        an edge crossing reveals).
+        an edge crossing reveals).  ``polygons``: ``False`` leaves them out, ``"dense"``
+        folds every edge, ``True`` near edges only on many (:mod:`planner.nearest`).
         """
         a = np.asarray(a, float).reshape(-1, 2)
         b = np.asarray(b, float).reshape(-1, 2)
-        rows = _rows_per_chunk(3 * (len(self.circle_radii) + len(self.edges[0])))
+        if polygons is True and self.polygons and len(a) * len(self.edges[0]) > _NEAR_PAIRS:
+            best, who = self.segment_clearance_detail(a, b, polygons=False)
+            return fold_near(self, best, who, a, b, (point_segment_distance, _crossing))
+        rows = _rows_per_chunk(3 * (len(self.circle_radii) + (len(self.edges[0]) if polygons else 0)))
         if len(a) > rows:
-            parts = [self.segment_clearance_detail(a[r : r + rows], b[r : r + rows]) for r in range(0, len(a), rows)]
+            parts = [self.segment_clearance_detail(a[r : r + rows], b[r : r + rows], polygons)
+                     for r in range(0, len(a), rows)]
             return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         n = len(a)
         best = np.minimum(self.wall_clearance(a), self.wall_clearance(b))
@@ -369,7 +380,7 @@ class Environment(BoxIndex):
             d = point_segment_distance(self.circle_centers[None], a[:, None], b[:, None])
             d = d - self.circle_radii[None]
             best, who = _fold_min(best, who, d, self.circle_ids)
-        if self.polygons and n:
+        if polygons and self.polygons and n:
             ea, eb, _ = self.edges
             # Segment to polygon edge: the distance is attained at an end of
             # one of them; every polygon vertex starts an edge, so the
