@@ -61,7 +61,7 @@ __all__ = ["FLOW_BUDGET_S", "FLOW_MIN_ROBOTS", "GRID_BUDGET_S", "GRID_TRIES", "b
            "grid_waypoints", "step_separated"]
 
 _TOL = 1e-9
-_MAX_VERTICES = 400_000
+_MAX_VERTICES = 1_100_000
 
 
 def detect_grid(problem: Problem) -> tuple[np.ndarray, float] | None:

@@ -22,6 +22,7 @@ points at full precision (5000 of each with three decimals take 195 KB and read 
 
 # Bounds shared by several fields (see the README's input table).
 _MAX_SIDE = 1000.0  # workspace side [units]
+_MAX_MAP_SIDE = 4000.0  # side of a workspace read from a map [units]: orz900d (1491 cells) at cell 2.4 is 3578
 _MAX_ROBOTS = 5000  # measured: 5000 scattered to scattered at 10 % coverage plan in 31 s, 1.2 GB
 # Obstacles of a scenario (random ones included), and their vertices (a random
 # obstacle counts as 8, the most it has).  The planner's clearance and

@@ -17,7 +17,7 @@ from planner.inputfile import echo_key, echo_path
 from planner.problem import Circle, Polygon
 
 from .fields import _kind, _Reader
-from .model import _MAX_OBSTACLES, _MAX_SEED, _MAX_SIDE, _MAX_VERTICES, _RANDOM_VERTICES, RandomObstacles
+from .model import _MAX_MAP_SIDE, _MAX_OBSTACLES, _MAX_SEED, _MAX_SIDE, _MAX_VERTICES, _RANDOM_VERTICES, RandomObstacles
 
 __all__: list[str] = []  # private to the scenario room
 
@@ -145,9 +145,9 @@ def _read_map(r: _Reader, value, base: Path) -> _MapInfo:
                 r.fail("map.cell", "is required: the side of one map cell [units]")
             cell = r.number(m["cell"], "map.cell", gt=0, le=_MAX_SIDE)
         width, height = grid.cols * cell, grid.rows * cell
-        if not (1 <= width <= _MAX_SIDE and 1 <= height <= _MAX_SIDE):
+        if not (1 <= width <= _MAX_MAP_SIDE and 1 <= height <= _MAX_MAP_SIDE):
             r.fail("map.cell", f"{cell:g} makes the workspace {width:g} x {height:g} ({grid.cols} x {grid.rows} "
-                   f"cells); each side must be in [1, {_MAX_SIDE:g}]")
+                   f"cells); each side must be in [1, {_MAX_MAP_SIDE:g}]")
         try:
             pieces = tuple(Polygon(p) for p in cover(grid, cell))
         except MapError as exc:

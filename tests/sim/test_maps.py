@@ -265,3 +265,19 @@ def test_room_100_runs_clean(tmp_path):
     """The 100-robot room scenario: measured 7 s of planning, 20 s in all."""
     result = run_scenario(EXAMPLES / "room-32-32-4-100.yaml", out_dir=tmp_path, render=False, out=None)
     assert result.exit_code == 0, result.report
+
+
+def test_wide_map_workspace_cap(tmp_path):
+    """A map of 1491 columns (orz900d's width) at cell 2.4 is 3578 wide and loads; at
+    cell 3 it is 4473 wide and is refused on map.cell, naming the cap."""
+    row = "." * 1491
+    text = "type octile\nheight 3\nwidth 1491\nmap\n" + "\n".join([row, "@" * 1491, row]) + "\n"
+    (tmp_path / "wide.map").write_text(text)
+    path = tmp_path / "s.yaml"
+    path.write_text("map: {file: wide.map, cell: 2.4}\nrobots: {radius: 1.0, margin: 0.1, count: 2}\n"
+                    "start: {points: [[1.2, 6.0], [6.0, 6.0]]}\ntarget: {points: [[3570, 6.0], [3500, 6.0]]}\n")
+    s = read_scenario(path)
+    assert s.width == pytest.approx(1491 * 2.4)
+    path.write_text(path.read_text().replace("cell: 2.4", "cell: 3"))
+    with pytest.raises(ScenarioError, match=r"map\.cell.*each side must be in \[1, 4000\]"):
+        read_scenario(path)
