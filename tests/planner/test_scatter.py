@@ -86,8 +86,9 @@ def test_checks_catch_bad_placements():
     with pytest.raises(AssertionError):
         _check(inside, 30)
     notch = pts.copy()
-    notch[2] = [29.0, 14.0]  # in the notch: outside the polygon, but too close to it
+    notch[2] = [29.0, 11.0]  # in the notch: outside the polygon, 1 above its reflex corner
     assert not _winding(notch[2], _obstacles()[1].vertices)
+    assert ENV.point_clearance(notch[2:3])[0] < CLEAR  # caught by the clearance, not by chance
     with pytest.raises(AssertionError):
         _check(notch, 30)
     with pytest.raises(AssertionError):
