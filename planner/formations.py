@@ -181,5 +181,6 @@ def place_formation(
     raise ProblemError(
         field,
         f"formation does not fit the workspace clear of the obstacles "
-        f"(no clear centre in {tries} random tries); lower the scale or move obstacles",
+        f"(no clear centre in {tries} random tries); lower the scale, move obstacles, "
+        f"or use formation: scatter to spread the robots over the free space",
     )

@@ -54,11 +54,12 @@ import numpy as np
 
 from .geometry import closest_approach
 from .grid import Lattice, grid_graph
+from .lattice import snap
 from .problem import Problem
 from .tswap import tswap
 
-__all__ = ["FLOW_BUDGET_S", "FLOW_MIN_ROBOTS", "GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "grid_plan",
-           "grid_waypoints", "step_separated"]
+__all__ = ["FLOW_BUDGET_S", "FLOW_MIN_ROBOTS", "GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "find_grid",
+           "grid_plan", "grid_waypoints", "map_grid", "step_separated"]
 
 _TOL = 1e-9
 _MAX_VERTICES = 1_100_000
@@ -91,6 +92,61 @@ def detect_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
         if np.abs(origin + c * idx - pts).max() <= tol:
             return np.mod(origin, c), float(c)
     return None
+
+
+def map_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
+    """``(offset, spacing c)`` of the cell centres of a map of cells, from its obstacles, or ``None``.
+
+    A map's obstacles are axis-aligned rectangles whose sides lie on the cell
+    lines ``o + s * integers`` (:func:`sim.scenario.maps.cover`).  The cell
+    ``s`` is found as in :func:`detect_grid` from the sides' coordinates; every
+    rectangle side must lie on those lines, and at least 9 in 10 obstacles must be such
+    rectangles.  The grid is the cell centres ``o + s / 2 + c * integers`` with
+    ``c`` the smallest multiple of ``s`` at least the separation (``c = s`` for
+    cells a robot fills, as in the MovingAI benchmark).  It is what
+    :func:`grid_waypoints` routes on when the starts or targets lie off every
+    grid (scattered over the free space): they are first snapped onto it.
+    """
+    obs = problem.obstacles
+    rects = []
+    for o in obs:
+        v = getattr(o, "vertices", None)
+        if v is None or len(v) != 4:
+            continue
+        xs, ys = np.unique(v[:, 0]), np.unique(v[:, 1])
+        if len(xs) == 2 and len(ys) == 2:
+            rects.append((xs, ys))
+    if len(rects) < 4 or len(rects) < 0.9 * len(obs):
+        return None
+    tol = _TOL * max(problem.width, problem.height, 1.0)
+    coords = [np.unique(np.concatenate([r[axis] for r in rects])) for axis in range(2)]
+    gaps = [d[d > tol].min() for d in (np.diff(u) for u in coords) if (d > tol).any()]
+    if not gaps:
+        return None
+    base = min(gaps)
+    origin = np.array([coords[0][0], coords[1][0]])
+    for k in range(1, 5):
+        s = base / k
+        if all(np.abs(u - o - s * np.round((u - o) / s)).max() <= tol for u, o in zip(coords, origin)):
+            break
+    else:
+        return None
+    mult = max(1, math.ceil(problem.separation / s - 1e-9))
+    c = s * mult
+    if not (problem.width / c) * (problem.height / c) <= _MAX_VERTICES:
+        return None
+    return np.mod(origin + s / 2, c), float(c)
+
+
+def find_grid(problem: Problem) -> tuple[tuple[np.ndarray, float], bool] | None:
+    """``(grid, snapped)``: the grid holding every start and target (:func:`detect_grid`,
+    ``snapped`` false), else the cell centres of a map (:func:`map_grid`, ``snapped``
+    true: the placements are snapped onto it), else ``None``."""
+    grid = detect_grid(problem)
+    if grid is not None:
+        return grid, False
+    grid = map_grid(problem)
+    return None if grid is None else (grid, True)
 
 
 def build_grid(problem: Problem, offset: np.ndarray, c: float) -> tuple[Lattice, np.ndarray, np.ndarray] | None:
@@ -201,8 +257,17 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
         return vid[ij[:, 0], ij[:, 1]]
 
     sv, gv = vertex(problem.start), vertex(problem.target)
-    if (sv < 0).any() or (gv < 0).any():
-        return None
+    entry = leave = None  # snapping rounds onto the grid (placements off it)
+    if not _on(lat, sv, problem.start):
+        got = snap(problem, lat, problem.start, deadline)
+        if got is None:
+            return None
+        entry, sv = got
+    if not _on(lat, gv, problem.target):
+        got = snap(problem, lat, problem.target, deadline)
+        if got is None:
+            return None
+        leave, gv = got
     # sqrt(2) * separation or more: following with a turn is safe too
     turns = c >= math.sqrt(2.0) * problem.separation
     if flow is not None:
@@ -213,7 +278,7 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
         steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng)
     if steps is None:
         return None
-    raw = [np.asarray(problem.start, float)]
+    raw = [np.asarray(problem.start, float), *(entry or [])]
     for where in steps:
         if time.perf_counter() > deadline:
             return None
@@ -221,9 +286,28 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
         if not step_separated(problem, raw[-1], nxt, c * (1 + 1e-9)):
             return None  # never expected: the rule above keeps every step separated
         raw.append(nxt)
-    # the robots end on the very target points (grid points equal them within 1e-9)
-    raw[-1] = _exact_targets(problem, raw[-1])
+    if leave is None:
+        # the robots end on the very target points (grid points equal them within 1e-9)
+        raw[-1] = _exact_targets(problem, raw[-1])
+        return raw
+    # the target's snapping rounds played backwards: the robot on vertex gv[j] ends on target j
+    at = np.full(lat.n, -1)
+    at[steps[-1] if steps else sv] = np.arange(problem.m)
+    robot = at[gv]
+    if (robot < 0).any():
+        return None
+    inv = np.empty(problem.m, int)
+    inv[robot] = np.arange(problem.m)
+    back = [np.asarray(problem.target, float), *leave][::-1]  # target j's robot in row j
+    raw += [cfg[inv] for cfg in back[1:]]
     return raw
+
+
+def _on(lat: Lattice, v: np.ndarray, pts: np.ndarray) -> bool:
+    """Whether every point sits on its grid vertex ``v`` (-1: none) within 1e-9 of the workspace."""
+    if (v < 0).any():
+        return False
+    return bool(np.abs(lat.points[v] - pts).max(initial=0.0) <= 1e-9 * max(1.0, float(np.abs(pts).max(initial=1.0))))
 
 
 def _exact_targets(problem: Problem, end: np.ndarray) -> np.ndarray:

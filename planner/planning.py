@@ -12,7 +12,7 @@ from .connect import sequenced_moves
 from .conveyor import DOOR_MIN_ROBOTS
 from .feasibility import feasibility
 from .freespace import free_roadmap_waypoints
-from .gridstage import detect_grid, grid_plan
+from .gridstage import find_grid, grid_plan
 from .guide import Late
 from .params import PlannerParams
 from .plan import Plan, PlanStats
@@ -55,7 +55,7 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     # on a grid the grid stage goes first (the proof takes about 0.3 s on a 256 x 256 map, a
     # share of a short limit) and the proof follows only when it found nothing.
     one_step = params.auto and _at_once(problem, problem.start, problem.target) is not None
-    gridded = params.auto and problem.m >= GRID_MIN_ROBOTS and detect_grid(problem) is not None
+    gridded = params.auto and problem.m >= GRID_MIN_ROBOTS and find_grid(problem) is not None
     if not (one_step or gridded):
         _prove(problem, t0)
     memo: dict = {}
@@ -235,9 +235,9 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             out.accepted = True
             return out
     if problem.m >= GRID_MIN_ROBOTS and time.perf_counter() < deadline:
-        grid = detect_grid(problem)
-        if grid is not None:  # starts and targets on one grid (map cells): route on it
-            found = grid_plan(problem, deadline, grid, rng)
+        grid = find_grid(problem)
+        if grid is not None:  # starts and targets on one grid, or a map of cells: route on it
+            found = grid_plan(problem, deadline, grid[0], rng)
             if found is not None:
                 w, sequential = found
                 out.offer("grid", sequential, (w, sequential, _makespan(problem, w)))

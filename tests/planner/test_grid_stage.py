@@ -136,3 +136,53 @@ def test_geo_bound_exceeds_the_straight_bound_on_a_maze():
     assert geo <= result.makespan
     # the bound of a straight step over the bottleneck path length
     assert geo == step_duration(p.__dict__["_geo_bottleneck"], p.max_speed, p.max_accel)
+
+
+def _rooms_scattered(m: int, seed: int) -> Problem:
+    """16 x 16 cells in four rooms (walls through the middle, a door one cell wide in
+    each), starts and targets scattered over the free space: off every grid."""
+    from planner.scatter import scatter
+
+    blocked = np.zeros((16, 16), bool)
+    blocked[8, :] = blocked[:, 8] = True
+    for r, c in ((8, 3), (8, 12), (3, 8), (12, 8)):
+        blocked[r, c] = False
+    shell = _cells_problem(blocked, [(0, 0)], [(0, 0)])
+    rng = np.random.default_rng(seed)
+    s = scatter(shell.env, m, shell.separation, shell.clearance, rng)
+    g = scatter(shell.env, m, shell.separation, shell.clearance, rng)
+    return Problem(shell.width, shell.height, shell.obstacles, 1.0, 0.1, s, g)
+
+
+def test_a_map_grid_is_read_from_the_obstacles_and_not_from_off_lattice_ones():
+    from planner.gridstage import find_grid, map_grid
+
+    p = _rooms_scattered(30, 0)
+    assert detect_grid(p) is None
+    offset, c = map_grid(p)
+    assert math.isclose(c, CELL) and np.allclose(offset, 0.5 * CELL)
+    assert find_grid(p)[1] is True
+    # negative controls: rectangles off the cell lines, and too few rectangles among discs
+    moved = list(p.obstacles)
+    moved[0] = Polygon(moved[0].vertices + np.array([0.37, 0.0]))
+    assert map_grid(Problem(p.width, p.height, tuple(moved), 1.0, 0.1, p.start, p.target)) is None
+    from planner import Circle
+
+    discs = tuple(Circle((3.0 + 4 * k, 30.0), 0.5) for k in range(len(p.obstacles) // 5))
+    assert map_grid(Problem(p.width, p.height, p.obstacles + discs, 1.0, 0.1, p.start, p.target)) is None
+    # cells narrower than the separation: the grid takes every second cell line
+    fine = Problem(p.width, p.height, p.obstacles, 0.6, 0.1, p.start[:2] * 0 + 10, p.target[:2] * 0 + 10)
+    assert math.isclose(map_grid(fine)[1], CELL)
+
+
+def test_scattered_robots_on_a_map_are_snapped_onto_its_cells_and_routed():
+    for seed, m in ((0, 30), (1, 60)):
+        p = _rooms_scattered(m, seed)
+        result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(seed))
+        assert stats.extra["direct"] == "grid", stats.extra
+        check_plan(p, result)
+        assert np.allclose(result.waypoints[0], p.start)
+        end = np.asarray(result.waypoints[-1])
+        assert np.allclose(end[np.lexsort(end.T)], p.target[np.lexsort(p.target.T)])  # the target set, unlabeled
+        geo = geo_lower_bound(p)
+        assert result.makespan <= 3.0 * geo, (result.makespan, geo)
