@@ -40,7 +40,7 @@ import numpy as np
 
 from .problem import Circle, Problem, describe_obstacle
 
-__all__ = ["Infeasible", "Passage", "feasibility"]
+__all__ = ["Infeasible", "Passage", "feasibility", "free_space_parts"]
 
 _QUAD_SEGS = 16  # segments per quarter circle in the grown obstacles
 
@@ -111,22 +111,12 @@ def feasibility(problem: Problem) -> Infeasible | None:
     if _islands_apart(problem):
         return None
     import shapely
-    from shapely.geometry import box
 
     c = problem.clearance
-    extent = max(problem.width, problem.height)
-    delta = 1e-7 + 1e-12 * extent
-    grow = c - delta
-    if problem.width <= 2 * grow or problem.height <= 2 * grow:
+    got = free_space_parts(problem)
+    if got is None:
         return None  # validated placements cannot exist; nothing to prove here
-    raw = _obstacle_geometries(problem)
-    room = box(grow, grow, problem.width - grow, problem.height - grow)
-    if raw:
-        grown = [_grow(g, ob, grow) for g, ob in zip(raw, problem.obstacles)]
-        free = room.difference(shapely.union_all(grown))
-    else:
-        free = room
-    parts = [g for g in getattr(free, "geoms", [free]) if not g.is_empty and g.area > 0]
+    parts, raw = got
     if len(parts) <= 1:
         return None
     where_s = _component_of(parts, problem.start)
@@ -147,6 +137,30 @@ def feasibility(problem: Problem) -> Infeasible | None:
     passage = _splitting_passage(problem, raw, parts, k, c)
     return Infeasible((float(here.x), float(here.y)), int(n_s[k]), int(n_t[k]), passage, 2 * c,
                       time.perf_counter() - t0)
+
+
+def free_space_parts(problem: Problem) -> tuple[list, list] | None:
+    """``(components, obstacle geometries)``: the connected components of an
+    over-approximation of the free space ``F`` as shapely polygons (obstacles grown by
+    ``c - delta``, see the module's soundness notes), or ``None`` when the workspace is
+    narrower than ``2 c``.  Only the robots' placements are ignored (``problem`` may have none)."""
+    import shapely
+    from shapely.geometry import box
+
+    c = problem.clearance
+    extent = max(problem.width, problem.height)
+    delta = 1e-7 + 1e-12 * extent
+    grow = c - delta
+    if problem.width <= 2 * grow or problem.height <= 2 * grow:
+        return None
+    raw = _obstacle_geometries(problem)
+    room = box(grow, grow, problem.width - grow, problem.height - grow)
+    if raw:
+        grown = [_grow(g, ob, grow) for g, ob in zip(raw, problem.obstacles)]
+        free = room.difference(shapely.union_all(grown))
+    else:
+        free = room
+    return [g for g in getattr(free, "geoms", [free]) if not g.is_empty and g.area > 0], raw
 
 
 def _islands_apart(problem: Problem) -> bool:

@@ -60,9 +60,9 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
         _prove(problem, t0)
     memo: dict = {}
     same = _same_set(problem.start, problem.target)
-    direct = None if same else _direct(problem, params, memo, deadline, rng)
-    if gridded and not one_step and direct is not None and direct.best is None and time.perf_counter() < deadline:
-        _prove(problem, t0)
+    # on a grid, the proof runs as soon as the grid stage has failed, before the other stages
+    proved = (lambda: _prove(problem, t0)) if gridded and not one_step else None
+    direct = None if same else _direct(problem, params, memo, deadline, rng, on_grid_fail=proved)
     if same:
         stats = PlanStats(found=True)
         result = Plan.from_waypoints(problem.start[None], problem.radius, problem.margin,
@@ -204,7 +204,7 @@ _BOUNDS_S_PER_ROBOT2 = 1e-6  # the lower bounds [s per robot squared]: about 0.9
 
 
 def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float = float("inf"),
-            rng: np.random.Generator | None = None) -> _Direct | None:
+            rng: np.random.Generator | None = None, on_grid_fail=None) -> _Direct | None:
     """Auto mode's tries, before any pebble graph is sampled (``None`` with fixed g and q).
 
     1. All robots at once, straight to their assigned targets, when that
@@ -243,6 +243,8 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
                 out.offer("grid", sequential, (w, sequential, _makespan(problem, w)))
                 out.accepted = True
                 return out
+    if on_grid_fail is not None and time.perf_counter() < deadline:
+        on_grid_fail()  # raises NoPlanFound when no plan exists
     if (not problem.obstacles and problem.m * np.pi * problem.radius**2 >= DENSE_COVERAGE * problem.width * problem.height
             and time.perf_counter() < deadline):
         from .dense import dense_plan  # packings too dense for the other stages

@@ -18,7 +18,10 @@ random.  When even the
 densest spacing (the separation itself) saturates below ``m`` it raises
 :class:`planner.problem.ProblemError` naming the field and the count that
 saturated run reached: what this sampler achieves, an honest maximum for
-the region.  The narrow annulus (Bridson's is ``[d, 2d]``) packs about 0.64
+the region.  Where obstacles split the free space, scenarios scatter over
+its largest connected component only (:func:`largest_part`; the MovingAI
+benchmark's scenarios do the same): a robot in a pocket could never reach
+a target outside it.  The narrow annulus (Bridson's is ``[d, 2d]``) packs about 0.64
 of a hexagonal packing at saturation where the wide one packs about 0.55, so
 more robots fit at the same spacing; a hexagonal lattice could hold about
 1.5x more, but it is not random.
@@ -33,7 +36,7 @@ import numpy as np
 from .geometry import Environment
 from .problem import ProblemError
 
-__all__ = ["poisson_disc", "scatter"]
+__all__ = ["largest_part", "poisson_disc", "scatter"]
 
 _K = 30  # candidates per active point (Bridson's k)
 _RING = 1.1  # candidates lie between d and _RING * d from the active point
@@ -43,19 +46,51 @@ _RUNS = 8  # spacing search: saturated samples at most
 _MAX_POINTS = 200_000  # a region and spacing that would need more are refused
 
 
-def _free_fraction(env: Environment, region, clearance: float, rng: np.random.Generator, n: int = 4096):
+def _free_fraction(env: Environment, region, clearance: float, rng: np.random.Generator, n: int = 4096,
+                   part=None):
     lo, hi = np.asarray(region[:2], float), np.asarray(region[2:], float)
     pts = rng.uniform(lo, hi, size=(n, 2))
-    return float(env.points_clear(pts, clearance).mean())
+    ok = env.points_clear(pts, clearance)
+    if part is not None and ok.any():
+        ok[ok] = _within(part)(pts[ok])
+    return float(ok.mean())
+
+
+def largest_part(problem):
+    """The largest connected component of the free space (a shapely polygon) when the
+    free space has several, else ``None`` (:func:`planner.feasibility.free_space_parts`).
+
+    Scatter spreads over it, as the MovingAI benchmark's scenarios do: robots in a
+    pocket cut off from the rest could never reach targets elsewhere."""
+    from .feasibility import _islands_apart, free_space_parts
+
+    if not problem.obstacles or _islands_apart(problem):
+        return None
+    got = free_space_parts(problem)
+    if got is None or len(got[0]) <= 1:
+        return None
+    return max(got[0], key=lambda g: g.area)
+
+
+def _within(part):
+    """A vectorised test ``(n, 2) -> (n,)`` of lying strictly inside ``part`` (``None``: everywhere)."""
+    if part is None:
+        return None
+    import shapely
+
+    shapely.prepare(part)
+    return lambda c: shapely.contains_xy(part, c[:, 0], c[:, 1])
 
 
 def poisson_disc(env: Environment, region, spacing: float, clearance: float,
-                 rng: np.random.Generator, k: int = _K) -> np.ndarray:
+                 rng: np.random.Generator, k: int = _K, part=None) -> np.ndarray:
     """A saturated Poisson-disc sample ``(N, 2)`` of the free part of ``region``.
 
     ``region`` is ``(x0, y0, x1, y1)``; points lie in it, keep ``clearance``
-    from walls and obstacles (exact) and ``spacing`` from each other.
+    from walls and obstacles (exact) and ``spacing`` from each other; with
+    ``part`` (a shapely polygon, :func:`largest_part`) only inside it.
     """
+    within = _within(part)
     x0, y0, x1, y1 = (float(v) for v in region)
     d = float(spacing)
     if not (d > 0 and x1 > x0 and y1 > y0):
@@ -99,13 +134,17 @@ def poisson_disc(env: Environment, region, spacing: float, clearance: float,
         arr[len(pts) - 1] = p
 
     def inside(c):
-        return (c[:, 0] >= x0) & (c[:, 0] <= x1) & (c[:, 1] >= y0) & (c[:, 1] <= y1)
+        box = (c[:, 0] >= x0) & (c[:, 0] <= x1) & (c[:, 1] >= y0) & (c[:, 1] <= y1)
+        if within is not None and box.any():
+            box[box] = within(c[box])
+        return box
 
     active: list[int] = []
     while True:
         # darts: a seed for the first point, then the gaps the growth missed
         darts = rng.uniform([x0, y0], [x1, y1], size=(_DARTS, 2))
-        ok = far(darts)
+        ok = inside(darts)
+        ok[ok] = far(darts[ok])
         if ok.any():
             ok[ok] = env.points_clear(darts[ok], clearance)
         if not ok.any():
@@ -146,24 +185,27 @@ def poisson_disc(env: Environment, region, spacing: float, clearance: float,
 
 
 def scatter(env: Environment, m: int, separation: float, clearance: float, rng: np.random.Generator,
-            *, region=None, field: str = "target") -> np.ndarray:
+            *, region=None, field: str = "target", part=None) -> np.ndarray:
     """``(m, 2)`` placements spread uniformly over the free part of ``region`` (default: all).
 
     Pairwise at least ``separation`` apart and ``clearance`` from walls and
-    obstacles, both exact.  Raises :class:`ProblemError` naming ``field``
-    (with the achievable maximum) when ``m`` robots do not fit.
+    obstacles, both exact; with ``part`` (:func:`largest_part`) only inside
+    that component of the free space.  Raises :class:`ProblemError` naming
+    ``field`` (with the achievable maximum) when ``m`` robots do not fit.
     """
     region = (0.0, 0.0, env.width, env.height) if region is None else tuple(float(v) for v in region)
     x0, y0, x1, y1 = region
     where = "the workspace" if region == (0.0, 0.0, env.width, env.height) else f"region {list(region)}"
-    area = (x1 - x0) * (y1 - y0) * _free_fraction(env, region, clearance, rng)
+    if part is not None:
+        where = f"the largest connected part of {where}"
+    area = (x1 - x0) * (y1 - y0) * _free_fraction(env, region, clearance, rng, part=part)
     # a saturated sample holds about 0.64 of a hexagonal packing
     guess = math.sqrt(0.64 * area / (math.sqrt(3) / 2 * max(m, 1))) if area > 0 else separation
     d = max(separation, guess)
     lo = hi = None  # spacings known to give >= m (lo) and < m (hi) points
     best = None
     for _ in range(_RUNS):
-        pts = poisson_disc(env, region, d, clearance, rng)
+        pts = poisson_disc(env, region, d, clearance, rng, part=part)
         n = len(pts)
         if n >= m:
             if best is None or n < len(best):
@@ -187,7 +229,7 @@ def scatter(env: Environment, m: int, separation: float, clearance: float, rng: 
             step = min(step, hi * 0.97)
         d = max(separation, step)
     if best is None:
-        pts = poisson_disc(env, region, separation, clearance, rng)
+        pts = poisson_disc(env, region, separation, clearance, rng, part=part)
         if len(pts) < m:
             raise ProblemError(
                 field,

@@ -113,6 +113,14 @@ def _print_stats(stats, margin: float, out=sys.stdout, *, auto: bool = False):
                  f"(plan is {stats.makespan_s / max(stats.makespan_lower_bound_s, 1e-9):.2f}x)"),
                 ("length bound", f"{stats.path_length_lower_bound:.2f}"),
             ]
+        # the bounds that respect obstacles (shortest paths around them; narrow passages)
+        for key, name, why in (("makespan_lower_bound_geo_s", "geo bound", "geo_lower_bound"),
+                               ("makespan_lower_bound_cut_s", "cut bound", "cut_lower_bound")):
+            value = getattr(stats, key, float("nan"))
+            if value == value and value > 0:
+                rows.append((name, f"{value:.2f} s (plan is {stats.makespan_s / value:.2f}x)"))
+            elif isinstance(stats.extra.get(why), str) and stats.extra[why].startswith("not computed: out"):
+                rows.append((name, stats.extra[why]))
     for key, value in rows:
         print(f"  {key:<15} {value}", file=out)
 

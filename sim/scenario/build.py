@@ -111,9 +111,12 @@ def build_legs(scenario: Scenario, rng: np.random.Generator) -> tuple[Problem, t
                 pts = np.asarray(spec.points, float)
                 check_placement(shell, pts, f"{key}.points")
             elif spec.formation == _SCATTER:
-                from planner.scatter import scatter
+                from planner.scatter import largest_part, scatter
 
-                pts = scatter(shell.env, s.count, sep, clearance, rng, region=spec.region, field=key)
+                if "part" not in shell.__dict__:  # the start and every target share it
+                    shell.__dict__["part"] = largest_part(shell)
+                pts = scatter(shell.env, s.count, sep, clearance, rng, region=spec.region, field=key,
+                              part=shell.__dict__["part"])
                 check_placement(shell, pts, key)
             else:
                 known = shapes.get(key)

@@ -161,3 +161,27 @@ def test_scatter_is_deterministic_per_seed():
 def test_poisson_disc_refuses_a_tiny_spacing():
     with pytest.raises(ValueError, match="too fine"):
         poisson_disc(ENV, (0, 0, W, H), 0.01, CLEAR, np.random.default_rng(0))
+
+
+def test_scatter_keeps_to_the_largest_connected_part():
+    """A closed room in the corner is free space no robot outside can reach: a scenario's
+    scatter (``part=largest_part``) puts nobody there; without it some land inside."""
+    from planner.problem import Polygon, Problem
+    from planner.scatter import largest_part
+
+    walls = [Polygon(np.array(v, float)) for v in (
+        [[0, 14], [16, 14], [16, 16], [0, 16]],   # the room's top wall
+        [[14, 0], [16, 0], [16, 14], [14, 14]],   # its right wall
+    )]
+    shell = Problem(W, H, tuple(walls), 1.0, 0.1, np.zeros((0, 2)), np.zeros((0, 2)))
+    part = largest_part(shell)
+    assert part is not None
+    def in_room(p):
+        return (p[:, 0] < 14) & (p[:, 1] < 14)
+    free = scatter(shell.env, 60, SEP, CLEAR, np.random.default_rng(0))
+    assert in_room(free).any()  # the control: the pocket is free space
+    kept = scatter(shell.env, 60, SEP, CLEAR, np.random.default_rng(0), part=part)
+    assert not in_room(kept).any()
+    assert pdist(kept).min() >= SEP and shell.env.point_clearance(kept).min() >= CLEAR
+    open_world = Problem(W, H, tuple(walls[:1]), 1.0, 0.1, np.zeros((0, 2)), np.zeros((0, 2)))
+    assert largest_part(open_world) is None  # one component: nothing to restrict

@@ -281,3 +281,23 @@ def test_wide_map_workspace_cap(tmp_path):
     path.write_text(path.read_text().replace("cell: 2.4", "cell: 3"))
     with pytest.raises(ScenarioError, match=r"map\.cell.*each side must be in \[1, 4000\]"):
         read_scenario(path)
+
+
+def test_scattered_robots_on_a_benchmark_map_plan_on_its_cells(tmp_path, capsys):
+    """Starts and targets scattered over room-32-32-4 (off every grid): the grid stage snaps
+    them onto the map's cells; ``swarmform plan`` prints the bound that respects obstacles."""
+    from sim.cli import main
+
+    path = tmp_path / "s.yaml"
+    path.write_text(f"name: room-scatter\nmap: {{file: {MAPS / 'room-32-32-4.map'}, cell: 2.4}}\n"
+                    "robots: {count: 60, radius: 1.0, margin: 0.1}\n"
+                    "start: {formation: scatter}\ntarget: {formation: scatter}\nplanner: {time_limit: 30}\n")
+    out = tmp_path / "plan.json"
+    assert main(["plan", str(path), "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "geo bound" in text, text
+    from planner import Plan
+
+    stats = Plan.load(out).stats
+    assert stats.extra["direct"] == "grid"
+    assert stats.makespan_s <= 2.5 * stats.makespan_lower_bound_geo_s
