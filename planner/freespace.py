@@ -47,6 +47,7 @@ from .problem import Problem
 __all__ = ["FreeRoadmap", "build_free_roadmap", "free_roadmap_setup", "free_roadmap_waypoints"]
 
 _MAX_GRID = 250_000  # grid points of half a separation beyond which the stage does not run
+_MEDIAL_SAMPLES = 60_000  # outline samples of the medial axis at most (the step grows beyond)
 
 
 class FreeRoadmap:
@@ -96,13 +97,15 @@ def medial_graph(problem: Problem, step: float, ridges: bool = True) -> tuple[np
         k = max(8, int(np.ceil(2 * np.pi * r / step)))
         ang = 2 * np.pi * np.arange(k) / k
         rings.append(cc + r * np.stack([np.cos(ang), np.sin(ang)], axis=1))
-    samples = []
-    for ring in rings:
-        a, b = ring, np.roll(ring, -1, axis=0)
-        for p, q in zip(a, b):
-            n = max(1, int(np.ceil(np.linalg.norm(q - p) / step)))
-            samples.append(p + (q - p) * (np.arange(n) / n)[:, None])
-    pts = np.unique(np.round(np.vstack(samples), 12), axis=0)
+    a = np.vstack(rings)
+    b = np.vstack([np.roll(r, -1, axis=0) for r in rings])
+    length = np.linalg.norm(b - a, axis=1)
+    # a coarser step where the outlines are long (Voronoi of 200 000 samples takes 7 s)
+    step = max(step, float(length.sum()) / _MEDIAL_SAMPLES)
+    n = np.maximum(1, np.ceil(length / step).astype(int))
+    seg = np.repeat(np.arange(len(a)), n)
+    f = ((np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)) / n[seg])[:, None]
+    pts = np.unique(np.round(a[seg] + f * (b[seg] - a[seg]), 12), axis=0)
     none = (np.zeros((0, 2)), np.zeros((0, 2), int))
     if len(pts) < 4:
         return none
@@ -134,8 +137,13 @@ def build_free_roadmap(problem: Problem, reach: float = 2.2, spacing: float = 0.
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     grid = np.stack([gx.ravel(), gy.ravel()], axis=1)
     grid = grid[problem.env.points_clear(grid, c)]
-    extra = np.vstack([passage_points(problem), medial_points(problem), corner_points(problem), grid])
     fixed = np.vstack([problem.start, problem.target])
+    pieces = [grid]
+    for part in (passage_points, medial_points, corner_points):  # seconds each on a large map
+        if time.perf_counter() > deadline:
+            return FreeRoadmap(fixed, np.zeros((0, 2), int), problem.m)  # the caller sees the deadline
+        pieces.insert(len(pieces) - 1, part(problem))
+    extra = np.vstack(pieces)
     keep = greedy_separated(extra, spacing * step, fixed)
     pts = np.vstack([fixed, extra[keep]])
     pairs = _clear_pairs(problem, pts, reach * sep)

@@ -60,6 +60,8 @@ __all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", 
 # ----------------------------------------------------------------------------
 # snapping
 
+_REACH = 8.0  # a robot snaps to lattice vertices at most this many spacings away
+
 
 def _near_segments(problem: Problem, a: np.ndarray, b: np.ndarray, owner: np.ndarray,
                    pos: np.ndarray, tree: cKDTree, ids: np.ndarray | None = None) -> np.ndarray:
@@ -95,13 +97,17 @@ def _assign(problem: Problem, lat: Lattice, pos: np.ndarray, robots: np.ndarray,
     if n == 0:
         return np.zeros(0, int)
     k = min(k, lat.n)
-    d, j = cKDTree(lat.points).query(pos[robots], k=k)
+    # vertices within _REACH spacings only: in a maze the nearest ones can lie far away,
+    # and long moves are costly to test (and rarely clear)
+    d, j = cKDTree(lat.points).query(pos[robots], k=k, distance_upper_bound=_REACH * lat.spacing)
     d, j = np.asarray(d).reshape(n, k), np.asarray(j).reshape(n, k)
     rows = np.repeat(np.arange(n), k)
-    cols = j.ravel()
+    found = j.ravel() < lat.n
+    cols = np.where(found, j.ravel(), 0)
+    d = np.where(np.isfinite(d), d, 0.0)
     a = np.repeat(pos[robots], k, axis=0)
     b = lat.points[cols]
-    ok = ~taken[cols]
+    ok = found & ~taken[cols]
     ok[ok] = problem.env.segments_clear(a[ok], b[ok], problem.clearance)
     blocked = np.zeros(len(cols), bool)
     blocked[ok] = _near_segments(problem, a[ok], b[ok], np.repeat(robots, k)[ok], pos, cKDTree(pos))

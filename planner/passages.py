@@ -64,6 +64,30 @@ def _segment_pair(a, b, c, d):
     return p, q, best
 
 
+def _pairs_within(a: np.ndarray, b: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs ``i < j`` (lexicographic) of segments ``a -> b`` holding every pair closer
+    than ``reach``: segments are cut into pieces at most ``L`` long and two pieces
+    whose closest points are within ``reach`` have centres within ``reach + L``
+    (a KD-tree finds those), so memory grows with the pairs near each other, not
+    with the square of the segments (9744 edges of a maze: 47 M pairs)."""
+    from scipy.spatial import cKDTree
+
+    n_seg = len(a)
+    length = np.linalg.norm(b - a, axis=1)
+    piece = max(reach, float(np.median(length)) if n_seg else 0.0, 1e-9)
+    n = np.maximum(1, np.ceil(length / piece).astype(int))
+    seg = np.repeat(np.arange(n_seg), n)
+    k = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+    f = ((k + 0.5) / n[seg])[:, None]
+    centres = a[seg] + f * (b[seg] - a[seg])
+    half = float((length / n).max(initial=0.0)) / 2
+    pairs = cKDTree(centres).query_pairs(reach + 2 * half + 1e-9 * (1 + reach + half), output_type="ndarray")
+    si, sj = seg[pairs[:, 0]], seg[pairs[:, 1]]
+    lo, hi = np.minimum(si, sj), np.maximum(si, sj)
+    key = np.unique(lo[lo != hi].astype(np.int64) * n_seg + hi[lo != hi])
+    return key // n_seg, key % n_seg
+
+
 def narrow_passages(problem: Problem) -> list[tuple[np.ndarray, np.ndarray]]:
     """Passages as ``(middle point, unit axis)`` pairs, one robot wide.
 
@@ -80,7 +104,7 @@ def narrow_passages(problem: Problem) -> list[tuple[np.ndarray, np.ndarray]]:
         a = np.array([x[0] for x in segs], float)
         b = np.array([x[1] for x in segs], float)
         owner = np.array([x[2] for x in segs])
-        i, j = np.triu_indices(len(segs), 1)
+        i, j = _pairs_within(a, b, hi)
         keep = owner[i] != owner[j]
         i, j = i[keep], j[keep]
         d = segment_segment_distance(a[i], b[i], a[j], b[j])

@@ -93,7 +93,7 @@ def test_direct_try_sequences_the_moves_when_the_single_step_is_blocked():
 def test_direct_try_gives_the_plan_the_roadmap_gives_for_the_same_route(monkeypatch):
     problem = _blocked_problem()
     direct, _ = plan(problem, PlannerParams(), np.random.default_rng(0))
-    monkeypatch.setattr(planning, "_direct", lambda *args: None)
+    monkeypatch.setattr(planning, "_direct", lambda *args, **kwargs: None)
     problem = _blocked_problem()
     via_roadmap, stats = plan(problem, PlannerParams(), np.random.default_rng(0))
     assert stats.extra["route"] == [0, 1] and stats.graphs >= 0

@@ -175,7 +175,7 @@ def _late_direct(delay: float):
     """A stand-in for the direct tries: the straight plan, offered after ``delay`` seconds."""
     import planner.planning as planning
 
-    def direct(problem, params, memo, deadline=float("inf"), rng=None):
+    def direct(problem, params, memo, deadline=float("inf"), rng=None, on_grid_fail=None):
         time.sleep(delay)
         out = planning._Direct()
         w = np.stack([problem.start, problem.target])
