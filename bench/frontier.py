@@ -346,9 +346,11 @@ def _in_child(case: Case, seeds: list[int], time_limit: float, limits=None) -> d
 
 #: The time-limit table: cases, limits [s], seeds per case and limit.  ``map-NAME-mM``: the
 #: MovingAI map ``NAME`` with ``M`` robots (:func:`bench.maps.map_problem`; seed 0 the map's
-#: ``.scen`` agents, others random cells), in this table only.
+#: ``.scen`` agents, others random cells); ``scatter-NAME-mM``: the same map with the robots
+#: scattered over its free space (:func:`bench.maps.scatter_problem`); in this table only.
 LIMIT_CASES = ("random-m200", "line-letter-m200", "random-m1000", "line-letter-m500", "clutter-60-m50", "density-40-m50",
-               "map-room-32-32-4-m200", "map-warehouse-20-40-10-2-2-m200", "map-Berlin_1_256-m200")
+               "map-room-32-32-4-m200", "map-warehouse-20-40-10-2-2-m200", "map-Berlin_1_256-m200",
+               "scatter-room-32-32-4-m400", "scatter-Berlin_1_256-m200")
 LIMITS = (0.5, 2.0, 5.0)
 LIMIT_SEEDS = 3
 LIMIT_COLUMNS = ["case", "m", "time limit [s]", "runs", "found", "median wall [s]", "max wall [s]",
@@ -380,7 +382,7 @@ def limit_rows(names=LIMIT_CASES, limits=LIMITS, seeds: int = LIMIT_SEEDS) -> li
 
 def _limit_case(name: str) -> Case:
     """The case of a time-limit row: one of :data:`CASES` or a map case (``map-NAME-mM``)."""
-    if name.startswith("map-"):
+    if name.startswith(("map-", "scatter-")):
         return Case(name, "map", int(name.rsplit("-m", 1)[1]))
     return next(c for c in CASES if c.name == name)
 
@@ -388,9 +390,11 @@ def _limit_case(name: str) -> Case:
 def _limit_problem(case: Case, seed: int) -> Problem:
     """The problem of a time-limit run (a map case's built by :func:`bench.maps.map_problem`)."""
     if case.kind == "map":
-        from .maps import map_problem
+        from .maps import map_problem, scatter_problem
 
-        return map_problem(case.name[len("map-"):].rsplit("-m", 1)[0], case.m, seed)
+        kind, rest = case.name.split("-", 1)
+        make = scatter_problem if kind == "scatter" else map_problem
+        return make(rest.rsplit("-m", 1)[0], case.m, seed)
     return case_problem(case, seed)
 
 

@@ -1,7 +1,7 @@
 """Planner benchmark on MovingAI grid maps.
 
     python -m bench.maps [--maps room-32-32-4 ...] [--counts 20 50 100 200 400] [--seeds N]
-                         [--time-limit S] [--no-lacam]
+                         [--time-limit S] [--no-lacam] [--scatter] [--map-dir DIR]
 
 Each map of ``tests/data/maps/`` becomes a world of cells ``CELL = 2.4`` wide
 (blocked cells merged into rectangle obstacles, :func:`sim.scenario.maps.cover`),
@@ -14,6 +14,12 @@ the process's peak resident memory so far (``ru_maxrss``), makespan over the str
 over the obstacle-respecting bound (:mod:`planner.geobound`), and beside it
 the LaCAM grid peer of :mod:`bench.peers` (pymapf, on its own grid of
 ``sqrt(2)`` separations) when it imports.  Prints a Markdown table.
+
+``--scatter`` puts the starts and targets anywhere in the free space instead of at
+cell centres (:func:`planner.scatter.scatter` over the largest connected part, as
+``formation: scatter`` does in a scenario; drawn from ``default_rng([seed, m])``):
+the grid stage then snaps them onto the cells.  LaCAM, which needs cells, is left
+out there.  ``--map-dir`` reads the maps from another folder (any MovingAI ``.map``).
 """
 
 from __future__ import annotations
@@ -29,7 +35,8 @@ import numpy as np
 from planner import NoPlanFound, PlannerParams, Polygon, Problem, plan
 from planner.plan import step_duration
 
-__all__ = ["CELL", "COLUMNS", "DEFAULT_MAPS", "load_map", "main", "map_problem", "run_lacam_cells", "run_one"]
+__all__ = ["CELL", "COLUMNS", "DEFAULT_MAPS", "load_map", "main", "map_problem", "run_lacam_cells", "run_one",
+           "scatter_problem"]
 
 CELL = 2.4
 RADIUS = 1.0
@@ -78,14 +85,35 @@ def _rectangles(blocked: np.ndarray, cell: float) -> list[Polygon]:
     return out
 
 
-def load_map(name: str) -> tuple[np.ndarray, list[Polygon]]:
+def load_map(name: str, map_dir: Path = MAP_DIR) -> tuple[np.ndarray, list[Polygon]]:
     """``(blocked cells, rectangle obstacles)`` of ``tests/data/maps/NAME.map``."""
-    blocked = _read_map(MAP_DIR / f"{name}.map")
+    blocked = _read_map(Path(map_dir) / f"{name}.map")
     return blocked, _rectangles(blocked, CELL)
 
 
-def _scen_cells(name: str) -> list[tuple[int, int, int, int]]:
-    files = sorted(MAP_DIR.glob(f"{name}-*.scen"))
+def scatter_problem(name: str, m: int, seed: int = 0, map_dir: Path = MAP_DIR) -> Problem:
+    """The map world with ``m`` robots scattered over the largest connected part of its
+    free space, starts and targets alike (see the module)."""
+    from planner.problem import ProblemError
+    from planner.scatter import largest_part, scatter
+
+    blocked, obstacles = load_map(name, map_dir)
+    rows, cols = blocked.shape
+    shell = Problem(width=cols * CELL, height=rows * CELL, obstacles=tuple(obstacles), radius=RADIUS,
+                    margin=MARGIN, start=np.zeros((0, 2)), target=np.zeros((0, 2)))
+    rng = np.random.default_rng([seed, m])
+    part = largest_part(shell)
+    try:
+        s, t = (scatter(shell.env, m, shell.separation, shell.clearance, rng, part=part, field=f)
+                for f in ("start", "target"))
+    except ProblemError as exc:
+        raise ValueError(f"{name}: {exc.reason}") from exc
+    return Problem(width=shell.width, height=shell.height, obstacles=shell.obstacles, radius=RADIUS,
+                   margin=MARGIN, start=s, target=t)
+
+
+def _scen_cells(name: str, map_dir: Path = MAP_DIR) -> list[tuple[int, int, int, int]]:
+    files = sorted(Path(map_dir).glob(f"{name}-*.scen"))
     if not files:
         return []
     out = []
@@ -104,16 +132,16 @@ def _largest_region(blocked: np.ndarray) -> np.ndarray:
     return np.argwhere(labels == big)  # (row, col)
 
 
-def map_problem(name: str, m: int, seed: int = 0) -> Problem:
+def map_problem(name: str, m: int, seed: int = 0, map_dir: Path = MAP_DIR) -> Problem:
     """The map world with ``m`` robots (see the module)."""
-    blocked, obstacles = load_map(name)
+    blocked, obstacles = load_map(name, map_dir)
     rows, cols = blocked.shape
     region = _largest_region(blocked)
     inside = {(int(r), int(c)) for r, c in region}
     starts, goals = [], []
     if seed == 0:
         used_s, used_g = set(), set()
-        for sx, sy, gx, gy in _scen_cells(name):
+        for sx, sy, gx, gy in _scen_cells(name, map_dir):
             if len(starts) == m:
                 break
             if (sy, sx) in used_s or (gy, gx) in used_g or (sy, sx) not in inside or (gy, gx) not in inside:
@@ -145,7 +173,7 @@ def _cells_of(problem: Problem, pts: np.ndarray, rows: int) -> np.ndarray:
     return np.stack([row, col], axis=1)
 
 
-def run_lacam_cells(name: str, problem: Problem, time_limit: float, seed: int) -> dict:
+def run_lacam_cells(name: str, problem: Problem, time_limit: float, seed: int, map_dir: Path = MAP_DIR) -> dict:
     """pymapf's LaCAM on the map's own cell graph (4-neighbours, following allowed):
     starts assigned to targets by the minimum sum of squared cell distances, then the
     labeled problem.  Returns its time steps and wall time; its makespan is the time
@@ -158,7 +186,7 @@ def run_lacam_cells(name: str, problem: Problem, time_limit: float, seed: int) -
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import shortest_path
 
-    blocked, _ = load_map(name)
+    blocked, _ = load_map(name, map_dir)
     rows, cols = blocked.shape
     t0 = time.perf_counter()
     sc, tc = _cells_of(problem, problem.start, rows), _cells_of(problem, problem.target, rows)
@@ -187,13 +215,17 @@ def run_lacam_cells(name: str, problem: Problem, time_limit: float, seed: int) -
             "lacam_makespan_s": steps * step_duration(CELL, problem.max_speed, problem.max_accel)}
 
 
-def run_one(name: str, m: int, seed: int, time_limit: float, lacam: bool, lacam_limit: float = 10.0) -> dict:
+def run_one(name: str, m: int, seed: int, time_limit: float, lacam: bool, lacam_limit: float = 10.0,
+            scattered: bool = False, map_dir: Path = MAP_DIR) -> dict:
     """One map, count and seed: our plan (checked exactly), the bounds, LaCAM beside."""
     from planner import check_plan
     from planner.bounds import lower_bounds
     from planner.geobound import geo_lower_bound
 
-    problem = map_problem(name, m, seed)
+    if scattered:
+        problem, lacam = scatter_problem(name, m, seed, map_dir), False
+    else:
+        problem = map_problem(name, m, seed, map_dir)
     row = {"map": name, "m": m, "seed": seed}
     t0 = time.perf_counter()
     try:
@@ -213,7 +245,7 @@ def run_one(name: str, m: int, seed: int, time_limit: float, lacam: bool, lacam_
         row["x_straight"] = row["makespan_s"] / row["straight_s"]
         row["x_geo"] = row["makespan_s"] / row["geo_s"]
     if lacam:
-        row.update(run_lacam_cells(name, problem, lacam_limit, seed))
+        row.update(run_lacam_cells(name, problem, lacam_limit, seed, map_dir))
         if row.get("lacam_ok"):
             row["lacam_x_geo"] = row["lacam_makespan_s"] / row["geo_s"]
     return row
@@ -234,6 +266,9 @@ def main(argv=None) -> int:
     ap.add_argument("--time-limit", type=float, default=60.0)
     ap.add_argument("--no-lacam", action="store_true")
     ap.add_argument("--lacam-limit", type=float, default=10.0, help="LaCAM's time limit [s]")
+    ap.add_argument("--scatter", action="store_true",
+                    help="starts and targets anywhere in the free space (not at cell centres; no LaCAM)")
+    ap.add_argument("--map-dir", type=Path, default=MAP_DIR, help="folder of the .map (and .scen) files")
     args = ap.parse_args(argv)
     lacam = not args.no_lacam
     if lacam:
@@ -246,13 +281,14 @@ def main(argv=None) -> int:
     warm_up_planner(args.time_limit)
     rows = []
     for name in args.maps:
-        if not (MAP_DIR / f"{name}.map").exists():
+        if not (args.map_dir / f"{name}.map").exists():
             print(f"# {name}: no map file, skipped", file=sys.stderr)
             continue
         for m in args.counts:
             for seed in range(args.seeds):
                 try:
-                    row = run_one(name, m, seed, args.time_limit, lacam, args.lacam_limit)
+                    row = run_one(name, m, seed, args.time_limit, lacam, args.lacam_limit,
+                                  scattered=args.scatter, map_dir=args.map_dir)
                 except ValueError as exc:
                     print(f"# {name} m={m}: {exc}", file=sys.stderr)
                     continue

@@ -97,10 +97,14 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
             return timed[key]
 
         incumbent = None if direct is None or direct.best is None else direct.best[2]
-        roadmap, source, goal, stats = build_roadmap(
-            problem, params, rng, deadline, makespan=lambda rm, route: evaluate(rm, route)[2],
-            incumbent=incumbent, covered=set() if direct is None else direct.covered,
-        )
+        try:
+            roadmap, source, goal, stats = build_roadmap(
+                problem, params, rng, deadline, makespan=lambda rm, route: evaluate(rm, route)[2],
+                incumbent=incumbent, covered=set() if direct is None else direct.covered,
+            )
+        except NoPlanFound as exc:  # its time is the whole run's, direct tries included
+            exc.stats.planning_time_s = time.perf_counter() - t0
+            raise
         best = None if direct is None else direct.best  # (waypoints, sequential, makespan, label)
         for route in roadmap.routes(source, goal, _ROUTES):
             waypoints, sequential, makespan = evaluate(roadmap, route)

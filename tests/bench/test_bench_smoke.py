@@ -202,3 +202,18 @@ def test_frontier_time_limit_rows():
     assert row["bar [s]"] == pytest.approx(1.1 * 0.5 + 0.5)
     assert row["within bar"] == ("yes" if row["max wall [s]"] <= row["bar [s]"] else "no")
     assert row["within bar"] == "yes"
+
+
+def test_maps_bench_scatter_rows_plan_on_the_cells():
+    """``bench.maps --scatter``: robots off the cells, in the largest free part, planned by the
+    grid stage and checked exactly; the obstacle-respecting bound sits beside."""
+    from bench import maps
+
+    p = maps.scatter_problem("room-32-32-4", 40, 1)
+    assert maps.map_problem("room-32-32-4", 40, 1).m == p.m == 40
+    from planner.gridstage import detect_grid
+
+    assert detect_grid(p) is None  # off every grid
+    row = maps.run_one("room-32-32-4", 40, 1, 20.0, lacam=True, scattered=True)
+    assert row["ok"] and row["stage"] == "grid" and "lacam_ok" not in row
+    assert row["x_geo"] <= row["x_straight"] and row["x_geo"] < 3
