@@ -201,3 +201,22 @@ def test_bounds_are_skipped_for_a_plan_found_late(monkeypatch, late):
     assert stats.found
     assert math.isnan(stats.makespan_lower_bound_s) == late
     assert ("lower_bounds" in stats.extra) == late
+
+
+def test_free_roadmap_stops_at_the_deadline_and_caps_the_medial_samples():
+    """A deadline already passed: the roadmap comes back at once without its costly parts
+    (the caller sees the deadline); a long outline gets a coarser medial step (the cap)."""
+    import planner.freespace as fs
+
+    p = case_problem(next(c for c in CASES if c.name.startswith("clutter")), 0)
+    t = time.perf_counter()
+    rm = build_free_roadmap(p, deadline=time.perf_counter() - 1.0)
+    assert time.perf_counter() - t < 0.5 and len(rm.points) == 2 * p.m
+    full, _ = fs.medial_graph(p, 0.25, ridges=False)
+    cap = fs._MEDIAL_SAMPLES
+    try:
+        fs._MEDIAL_SAMPLES = 200  # far fewer samples than the outlines need at 0.25
+        coarse, _ = fs.medial_graph(p, 0.25, ridges=False)
+    finally:
+        fs._MEDIAL_SAMPLES = cap
+    assert 0 < len(coarse) < len(full)
