@@ -92,7 +92,8 @@ def _cmd_show(args) -> int:
     return EXIT_OK
 
 
-def _print_stats(stats, margin: float, out=sys.stdout, *, auto: bool = False):
+def _print_stats(stats, margin: float, out=None, *, auto: bool = False):
+    out = sys.stdout if out is None else out  # looked up at the call (a redirected stdout too)
     rows = [
         ("found", "yes" if stats.found else "no"),
         ("planning time", f"{stats.planning_time_s:.3f} s"),
