@@ -100,11 +100,10 @@ def _in_rectangles(problem: Problem, pts: np.ndarray, nx: int, ny: int) -> np.nd
     if nx < 2 or ny < 2 or not problem.obstacles:
         return out
     g = pts.reshape(nx, ny, 2)
-    ox, oy = float(g[0, 0, 0]), float(g[0, 0, 1])
-    dx, dy = float(g[1, 0, 0] - ox), float(g[0, 1, 1] - oy)
     xs, ys = g[:, 0, 0], g[0, :, 1]
-    # only an axis-aligned grid (a rotated one, as the door stage's, is left to the exact test)
-    if dx <= 0 or dy <= 0 or (g[:, :, 0] != xs[:, None]).any() or (g[:, :, 1] != ys[None, :]).any() \
+    # only an axis-aligned grid, its lines evenly spaced or not (a rotated one, as the door
+    # stage's, is left to the exact test)
+    if (g[:, :, 0] != xs[:, None]).any() or (g[:, :, 1] != ys[None, :]).any() \
             or (np.diff(xs) <= 0).any() or (np.diff(ys) <= 0).any():
         return out
     box = []
@@ -119,22 +118,15 @@ def _in_rectangles(problem: Problem, pts: np.ndarray, nx: int, ny: int) -> np.nd
     if not box:
         return out
     b = np.asarray(box)
-    # the closed range of grid indices inside each box, computed with a margin of
-    # one index and then tested exactly against the points' coordinates
-    i0 = np.clip(np.ceil((b[:, 0] - ox) / dx).astype(np.int64) - 1, 0, nx)
-    i1 = np.clip(np.floor((b[:, 2] - ox) / dx).astype(np.int64) + 1, -1, nx - 1)
-    j0 = np.clip(np.ceil((b[:, 1] - oy) / dy).astype(np.int64) - 1, 0, ny)
-    j1 = np.clip(np.floor((b[:, 3] - oy) / dy).astype(np.int64) + 1, -1, ny - 1)
+    # the closed range of grid lines inside each box, by the lines' exact coordinates:
+    # points ia..ib-1, ja..jb-1 lie in the closed box
+    ia, ib = np.searchsorted(xs, b[:, 0], side="left"), np.searchsorted(xs, b[:, 2], side="right")
+    ja, jb = np.searchsorted(ys, b[:, 1], side="left"), np.searchsorted(ys, b[:, 3], side="right")
     mark = np.zeros((nx + 1, ny + 1), np.int64)
-    for k in np.flatnonzero((i1 >= i0) & (j1 >= j0)):
-        ia = i0[k] + int(np.searchsorted(xs[i0[k] : i1[k] + 1], b[k, 0], side="left"))
-        ib = i0[k] + int(np.searchsorted(xs[i0[k] : i1[k] + 1], b[k, 2], side="right"))
-        ja = j0[k] + int(np.searchsorted(ys[j0[k] : j1[k] + 1], b[k, 1], side="left"))
-        jb = j0[k] + int(np.searchsorted(ys[j0[k] : j1[k] + 1], b[k, 3], side="right"))
-        if ib > ia and jb > ja:  # points ia..ib-1, ja..jb-1 lie in the closed box
-            mark[ia, ja] += 1
-            mark[ib, ja] -= 1
-            mark[ia, jb] -= 1
-            mark[ib, jb] += 1
+    for k in np.flatnonzero((ib > ia) & (jb > ja)):
+        mark[ia[k], ja[k]] += 1
+        mark[ib[k], ja[k]] -= 1
+        mark[ia[k], jb[k]] -= 1
+        mark[ib[k], jb[k]] += 1
     inside = np.cumsum(np.cumsum(mark, axis=0), axis=1)[:nx, :ny] > 0
     return inside.ravel()

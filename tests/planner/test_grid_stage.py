@@ -186,3 +186,47 @@ def test_scattered_robots_on_a_map_are_snapped_onto_its_cells_and_routed():
         assert np.allclose(end[np.lexsort(end.T)], p.target[np.lexsort(p.target.T)])  # the target set, unlabeled
         geo = geo_lower_bound(p)
         assert result.makespan <= 3.0 * geo, (result.makespan, geo)
+
+
+def _fine_door(door_cells: tuple[int, int]) -> Problem:
+    """Cells of 0.5 (five per separation of 2.1): 40 x 30 cells, a wall 2 cells thick
+    across the middle with a door of cells ``door_cells`` (a free band of 0.8 units
+    for a robot's centre: an even grid of every fifth cell line can miss it)."""
+    s = 0.5
+    blocked = np.zeros((30, 40), bool)
+    blocked[14:16, :] = True
+    blocked[14:16, door_cells[0]:door_cells[1]] = False
+    obs = []
+    for r, c in zip(*np.nonzero(blocked)):
+        x0, y0 = c * s, (30 - r - 1) * s
+        obs.append(Polygon(np.array([[x0, y0], [x0 + s, y0], [x0 + s, y0 + s], [x0, y0 + s]])))
+    return Problem(40 * s, 30 * s, tuple(obs), 1.0, 0.1, np.array([[3.0, 3.0]]), np.array([[3.0, 12.0]]))
+
+
+def test_uneven_lines_pass_a_door_an_even_grid_misses():
+    from planner.gridstage import Lines, build_grid, map_grid
+
+    p = _fine_door((21, 27))  # x in [10.5, 13.5]: centres in [11.6, 12.4]
+    lines = map_grid(p)
+    assert isinstance(lines, Lines) and lines.gap >= p.separation - 1e-9
+    assert lines.reach <= 9 * 0.5 + 1e-9
+    lat = build_grid(p, lines)[0]
+    below, above = lat.points[:, 1] < 7.0, lat.points[:, 1] > 8.0
+    assert set(lat.component[below]) & set(lat.component[above])  # one component spans the wall
+    # the control: the even grid of every fifth cell centre (x = 0.25 + 2.5 k) has no line in
+    # the door's band, so the wall splits it
+    even = build_grid(p, np.array([0.25, 0.25]), 2.5)[0]
+    assert not set(even.component[even.points[:, 1] < 7.0]) & set(even.component[even.points[:, 1] > 8.0])
+
+
+def test_scattered_robots_cross_a_fine_door_on_uneven_lines():
+    from planner.scatter import scatter
+
+    shell = _fine_door((21, 27))
+    rng = np.random.default_rng(3)
+    lo = scatter(shell.env, 12, shell.separation, shell.clearance, rng, region=(0, 0, 20, 6.5))
+    hi = scatter(shell.env, 12, shell.separation, shell.clearance, rng, region=(0, 8.5, 20, 15))
+    p = Problem(shell.width, shell.height, shell.obstacles, 1.0, 0.1, lo, hi)
+    result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(0))
+    assert stats.extra["direct"] == "grid"
+    check_plan(p, result)
