@@ -55,14 +55,13 @@ import numpy as np
 from .geometry import closest_approach
 from .grid import Lattice, grid_graph
 from .lattice import snap
+from .mapgrid import _MAX_VERTICES, _TOL, Lines, map_grid
 from .problem import Problem
 from .tswap import tswap
 
 __all__ = ["FLOW_BUDGET_S", "FLOW_MIN_ROBOTS", "GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "find_grid",
            "grid_plan", "grid_waypoints", "map_grid", "step_separated"]
 
-_TOL = 1e-9
-_MAX_VERTICES = 1_100_000
 
 
 def detect_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
@@ -92,188 +91,6 @@ def detect_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
         if np.abs(origin + c * idx - pts).max() <= tol:
             return np.mod(origin, c), float(c)
     return None
-
-
-def map_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
-    """``(offset, spacing c)`` of the cell centres of a map of cells, from its obstacles, or ``None``.
-
-    A map's obstacles are axis-aligned rectangles whose sides lie on the cell
-    lines ``o + s * integers`` (:func:`sim.scenario.maps.cover`).  The cell
-    ``s`` is found as in :func:`detect_grid` from the sides' coordinates; every
-    rectangle side must lie on those lines, and at least 9 in 10 obstacles must be such
-    rectangles.  The grid is the cell centres ``o + s / 2 + c * integers`` with
-    ``c`` the smallest multiple of ``s`` at least the separation (``c = s`` for
-    cells a robot fills, as in the MovingAI benchmark).  It is what
-    :func:`grid_waypoints` routes on when the starts or targets lie off every
-    grid (scattered over the free space): they are first snapped onto it.  Cells finer
-    than the separation (an occupancy grid) on a map of at most :data:`_LINE_CELLS`
-    cells give uneven grid lines instead (:class:`Lines`, :func:`door_lines`).
-    """
-    obs = problem.obstacles
-    rects = []
-    for o in obs:
-        v = getattr(o, "vertices", None)
-        if v is None or len(v) != 4:
-            continue
-        xs, ys = np.unique(v[:, 0]), np.unique(v[:, 1])
-        if len(xs) == 2 and len(ys) == 2:
-            rects.append((xs, ys))
-    if len(rects) < 4 or len(rects) < 0.9 * len(obs):
-        return None
-    tol = _TOL * max(problem.width, problem.height, 1.0)
-    coords = [np.unique(np.concatenate([r[axis] for r in rects])) for axis in range(2)]
-    gaps = [d[d > tol].min() for d in (np.diff(u) for u in coords) if (d > tol).any()]
-    if not gaps:
-        return None
-    base = min(gaps)
-    origin = np.array([coords[0][0], coords[1][0]])
-    for k in range(1, 5):
-        s = base / k
-        if all(np.abs(u - o - s * np.round((u - o) / s)).max() <= tol for u, o in zip(coords, origin)):
-            break
-    else:
-        return None
-    mult = max(1, math.ceil(problem.separation / s - 1e-9))
-    c = s * mult
-    if not (problem.width / c) * (problem.height / c) <= _MAX_VERTICES:
-        return None
-    if mult > 1 and problem.width * problem.height / s**2 <= _LINE_CELLS:
-        cached = problem.__dict__.get("_map_lines")
-        if cached is None:
-            cached = problem.__dict__["_map_lines"] = door_lines(problem, origin, s, mult)
-        return cached
-    return np.mod(origin + s / 2, c), float(c)
-
-
-#: Maps of at most this many cells, cells finer than the separation, get uneven grid lines
-_LINE_CELLS = 150_000  # about 0.4 s of exact tests (360 000 cells: 1.0 s)
-
-
-class Lines:
-    """A grid whose lines are unevenly spaced: vertical lines at ``xs``, horizontal ones at
-    ``ys`` (increasing, consecutive lines at least ``gap`` apart, at most ``reach``)."""
-
-    def __init__(self, xs: np.ndarray, ys: np.ndarray):
-        self.xs, self.ys = np.asarray(xs, float), np.asarray(ys, float)
-        gaps = np.concatenate([np.diff(self.xs), np.diff(self.ys)])
-        self.gap = float(gaps.min(initial=math.inf))
-        self.reach = float(gaps.max(initial=0.0))
-
-
-def door_lines(problem: Problem, origin: np.ndarray, s: float, mult: int) -> Lines | None:
-    """Grid lines through the cell centres of a map of fine cells, chosen so that narrow
-    openings get a line through them (``None`` when no line fits).
-
-    With ``mult`` cells per separation, a grid of every ``mult``-th cell line misses a
-    doorway whose free band (the cell centres a robot's centre may take there) is fewer
-    than ``mult`` cells wide, unless its phase happens to fit.  Here each axis is chosen
-    on its own: a cell centre that keeps the clearance (exact) and lies in a run of
-    clear centres across the line shorter than ``2 mult - 1`` cells (a narrow opening:
-    an even grid with that largest gap could pass it by) weighs 1, every other clear
-    centre a small amount; a dynamic program picks the lines, consecutive ones ``mult``
-    to ``2 mult - 1`` cells apart (at least the separation), of the largest total
-    weight.  The per-step exact check of :func:`grid_waypoints` covers the uneven gaps
-    (every TSWAP rule of the module holds gap by gap).
-    """
-    origin = np.mod(origin, s)  # the first cell line in the workspace (the map's may lie above)
-    kx = int(math.floor((problem.width - origin[0]) / s + 1e-9))
-    ky = int(math.floor((problem.height - origin[1]) / s + 1e-9))
-    if kx < 1 or ky < 1:
-        return None
-    cx = origin[0] + s * (np.arange(kx) + 0.5)
-    cy = origin[1] + s * (np.arange(ky) + 0.5)
-    gx, gy = np.meshgrid(cx, cy, indexing="ij")
-    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    clear = ~_in_rectangles_of(problem, pts, kx, ky)
-    clear[clear] = problem.env.points_clear(pts[clear], problem.clearance)
-    clear = clear.reshape(kx, ky)
-    wide = 2 * mult - 1
-    # each axis in turn, its edge scores counted on the other axis' lines only
-    xs = _pick(clear, mult, wide)  # vertical lines
-    ys = _pick(clear.T, mult, wide, on=xs)
-    for _ in range(2):
-        if len(xs) == 0 or len(ys) == 0:
-            return None
-        xs = _pick(clear, mult, wide, on=ys)
-        ys = _pick(clear.T, mult, wide, on=xs)
-    if len(xs) == 0 or len(ys) == 0:
-        return None
-    return Lines(cx[xs], cy[ys])
-
-
-def _in_rectangles_of(problem: Problem, pts: np.ndarray, nx: int, ny: int) -> np.ndarray:
-    from .grid import _in_rectangles
-
-    return _in_rectangles(problem, pts, nx, ny)
-
-
-def _runs(clear: np.ndarray) -> np.ndarray:
-    """For every cell, the length of its run of clear cells down axis 0 (0 where blocked)."""
-    n, m = clear.shape
-    c = np.concatenate([np.zeros((1, m), np.int8), clear.astype(np.int8), np.zeros((1, m), np.int8)])
-    d = np.diff(c, axis=0)  # +1 where a run starts, -1 one past its end (per column)
-    run = np.zeros((n, m), np.int64)
-    for j in np.flatnonzero(clear.any(axis=0)):
-        a = np.flatnonzero(d[:, j] == 1)
-        b = np.flatnonzero(d[:, j] == -1)
-        lengths = np.repeat(b - a, b - a)
-        run[np.concatenate([np.arange(x, y) for x, y in zip(a, b)]), j] = lengths
-    return run
-
-
-def _pick(clear: np.ndarray, lo: int, hi: int, on: np.ndarray | None = None) -> np.ndarray:
-    """Line positions (indices along axis 0 of ``clear``, lines running along axis 1),
-    consecutive ones ``lo`` to ``hi`` apart, the first within ``hi`` of the start and the
-    last within ``hi`` of the end, of the largest score.
-
-    A line at ``k`` scores the clear cells it passes whose run across it (down axis 0) is
-    shorter than ``hi`` (an opening an even grid could miss; 1 where the line runs on clear
-    for ``2 hi`` cells through it, else 0.1); two consecutive lines ``a <
-    b`` score the cells ``(t, j)`` between them, ``a < t < b``, whose run along axis 1 is
-    shorter than ``hi`` (a gap in a wall across the lines) where the cells ``a..b`` of
-    that row are all clear (the edge between the lines' vertices through the gap can be
-    clear), counted on the rows ``on`` only when given (the other axis' lines); every clear
-    cell on a line scores 1e-3 more."""
-    n, m = clear.shape
-    narrow_across = clear & (_runs(clear) < hi)
-    along = _runs(clear.T).T  # run along axis 1
-    # an opening counts fully where the line through it runs on clear for 2 hi cells at least
-    # (room for vertices on both sides), a tenth where something blocks it near
-    w = (narrow_across * np.where(along >= 2 * hi, 1.0, 0.1)).sum(axis=1) + 1e-3 * clear.sum(axis=1)
-    narrow_along = (clear & (along < hi)).astype(np.int64)
-    if on is not None:
-        rows = np.zeros(m, bool)
-        rows[np.asarray(on, int)] = True
-        narrow_along[:, ~rows] = 0
-    blocked = np.concatenate([np.zeros((1, m), np.int64), np.cumsum(~clear, axis=0)])  # prefix over axis 0
-    gate = np.concatenate([np.zeros((1, m), np.int64), np.cumsum(narrow_along, axis=0)])
-
-    def pair(a: np.ndarray, b: int) -> np.ndarray:
-        """Scores of the line pairs (a[i], b)."""
-        ok = (blocked[b + 1] - blocked[a]) == 0  # (len(a), m): rows a..b all clear
-        through = (gate[b] - gate[a + 1]) > 0  # a narrow cell strictly between
-        return (ok & through).sum(axis=1).astype(float)
-
-    best = np.full(n, -np.inf)
-    prev = np.full(n, -1)
-    for k in range(n):
-        if k < hi:
-            best[k] = w[k]
-        a = np.arange(max(0, k - hi), k - lo + 1)
-        if len(a):
-            cand = best[a] + pair(a, k) + w[k]
-            j = int(np.argmax(cand))
-            if cand[j] > best[k]:
-                best[k], prev[k] = cand[j], a[j]
-    tail = np.arange(max(0, n - hi), n)
-    if not len(tail) or not np.isfinite(best[tail]).any():
-        return np.zeros(0, int)
-    k = int(tail[np.argmax(best[tail])])
-    out = []
-    while k >= 0:
-        out.append(k)
-        k = int(prev[k])
-    return np.asarray(out[::-1], int)
 
 
 def find_grid(problem: Problem) -> tuple[tuple[np.ndarray, float], bool] | None:
