@@ -23,6 +23,10 @@ __all__ = []
 
 _CUT_MIN_ROBOTS = 10  # fewer robots queue briefly: the bound adds little and would slow small plans by a quarter
 _GEO_MIN_S = 0.1  # the least time left for the obstacle-respecting bound to start [s]
+#: Above this many obstacles the geo and cut bounds are not tried within the planner's budget:
+#: on the third-party maps measured (docs/benchmarks.md), each of the three maps over it
+#: (2282 to 2973 rectangles) ran out of it at 100, 200 and 400 robots, after 1 to 4 s.
+_BOUND_MAX_OBSTACLES = 2000
 
 
 def _name_direct(stats: PlanStats, label: str) -> None:
@@ -77,6 +81,10 @@ def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> N
     limit; otherwise NaN and ``stats.extra["geo_lower_bound"]`` says why (also when
     less than :data:`_GEO_MIN_S` of the limit is left: its setup alone takes that)."""
     now = time.perf_counter()
+    if len(problem.obstacles) > _BOUND_MAX_OBSTACLES:
+        stats.extra["geo_lower_bound"] = (f"not computed: {len(problem.obstacles)} obstacles, over the "
+                                          f"{_BOUND_MAX_OBSTACLES} its time budget covers")
+        return
     if limit - now < _GEO_MIN_S:
         stats.extra["geo_lower_bound"] = (f"not computed: {max(limit - now, 0.0):.2g} s of the time "
                                           f"limit was left, under {_GEO_MIN_S:g} s")
@@ -98,6 +106,10 @@ def _cut_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> N
     cached; finding them afresh takes seconds on large maps)."""
     lanes = problem.__dict__.get("_lanes_4")
     if problem.m < _CUT_MIN_ROBOTS or not problem.obstacles or (lanes is not None and not len(lanes)):
+        return
+    if len(problem.obstacles) > _BOUND_MAX_OBSTACLES:
+        stats.extra["cut_lower_bound"] = (f"not computed: {len(problem.obstacles)} obstacles, over the "
+                                          f"{_BOUND_MAX_OBSTACLES} its time budget covers")
         return
     now = time.perf_counter()
     if limit - now < _GEO_MIN_S:

@@ -120,7 +120,7 @@ def _print_stats(stats, margin: float, out=None, *, auto: bool = False):
             value = getattr(stats, key, float("nan"))
             if value == value and value > 0:
                 rows.append((name, f"{value:.2f} s (plan is {stats.makespan_s / value:.2f}x)"))
-            elif isinstance(stats.extra.get(why), str) and stats.extra[why].startswith("not computed: out"):
+            elif isinstance(stats.extra.get(why), str) and ("budget" in stats.extra[why]):
                 rows.append((name, stats.extra[why]))
     for key, value in rows:
         print(f"  {key:<15} {value}", file=out)

@@ -230,3 +230,28 @@ def test_scattered_robots_cross_a_fine_door_on_uneven_lines():
     result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(0))
     assert stats.extra["direct"] == "grid"
     check_plan(p, result)
+
+
+def test_bounds_are_not_tried_over_the_obstacle_cap():
+    """Over 2000 obstacles the geo and cut bounds are skipped with a reason (on the maps
+    measured they always ran out of budget there); with 60 they are computed (the control)."""
+    import time
+
+    from planner import Circle
+    from planner.plan import PlanStats
+    from planner.tries import _BOUND_MAX_OBSTACLES, _cut_bound, _geo_bound
+
+    def world(n):
+        discs = tuple(Circle((1.0 + 2.0 * (k % 60), 130.0 + 2.0 * (k // 60)), 0.2) for k in range(n))
+        start = np.array([[5.0 + 3 * k, 5.0] for k in range(12)])
+        return Problem(130.0, 200.0, discs, 1.0, 0.1, start, start + [0.0, 60.0])
+
+    over, stats = world(_BOUND_MAX_OBSTACLES + 1), PlanStats(found=True)
+    t = time.perf_counter()
+    _geo_bound(over, stats, t, t + 60)
+    _cut_bound(over, stats, t, t + 60)
+    assert "2001 obstacles" in stats.extra["geo_lower_bound"] and "2001 obstacles" in stats.extra["cut_lower_bound"]
+    assert math.isnan(stats.makespan_lower_bound_geo_s)
+    at, stats = world(60), PlanStats(found=True)
+    _geo_bound(at, stats, time.perf_counter() - 10, time.perf_counter() + 60)
+    assert stats.makespan_lower_bound_geo_s > 0 and "geo_lower_bound" not in stats.extra
