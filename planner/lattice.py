@@ -61,10 +61,6 @@ __all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", 
 # snapping
 
 _REACH = 8.0  # a robot snaps to lattice vertices at most this many spacings away
-#: Gaps this far below the separation still pass, as in the exact validator
-#: (:data:`planner.validate._TOL`): grid lines exactly a separation apart differ from it by
-#: rounding (0.4499999999999886 for 9 cells of 0.05).
-_SEP_TOL = 1e-9
 
 
 def _near_segments(problem: Problem, a: np.ndarray, b: np.ndarray, owner: np.ndarray,
@@ -86,7 +82,7 @@ def _near_segments(problem: Problem, a: np.ndarray, b: np.ndarray, owner: np.nda
     keep = (who if ids is None else ids[who]) != owner[seg]
     seg, who = seg[keep], who[keep]
     d = point_segment_distance(pos[who], a[seg], b[seg])
-    out[seg[d < sep - _SEP_TOL]] = True
+    out[seg[d < sep]] = True
     return out
 
 
@@ -156,7 +152,7 @@ def _conflicts(problem: Problem, a: np.ndarray, b: np.ndarray, moving: np.ndarra
     i, j = pairs[:, 0], pairs[:, 1]
     keep = moving[i] | moving[j]
     i, j = i[keep], j[keep]
-    close = closest_approach(a[i], b[i], a[j], b[j]) < sep - _SEP_TOL
+    close = closest_approach(a[i], b[i], a[j], b[j]) < sep
     return np.stack([i[close], j[close]], axis=1)
 
 

@@ -125,7 +125,19 @@ def door_lines(problem: Problem, origin: np.ndarray, s: float, mult: int) -> Lin
         ys = _pick(clear.T, mult, wide, on=xs)
     if len(xs) == 0 or len(ys) == 0:
         return None
-    return Lines(cx[xs], cy[ys])
+    return Lines(_apart(cx[xs], problem.separation), _apart(cy[ys], problem.separation))
+
+
+def _apart(lines: np.ndarray, sep: float) -> np.ndarray:
+    """The lines, each moved up by the few ulps that make its difference from the one
+    before at least ``sep`` in floating point (cell centres ``mult`` cells apart are a
+    separation apart only up to rounding: 0.4499999999999886 for 9 cells of 0.05, which
+    the exact checks would count as robots too close)."""
+    out = np.array(lines, float)
+    for k in range(1, len(out)):
+        while out[k] - out[k - 1] < sep:
+            out[k] = np.nextafter(out[k], math.inf)
+    return out
 
 
 def _in_rectangles_of(problem: Problem, pts: np.ndarray, nx: int, ny: int) -> np.ndarray:

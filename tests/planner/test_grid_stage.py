@@ -255,3 +255,16 @@ def test_bounds_are_not_tried_over_the_obstacle_cap():
     at, stats = world(60), PlanStats(found=True)
     _geo_bound(at, stats, time.perf_counter() - 10, time.perf_counter() + 60)
     assert stats.makespan_lower_bound_geo_s > 0 and "geo_lower_bound" not in stats.extra
+
+
+def test_uneven_lines_are_a_separation_apart_in_floating_point():
+    """Cell centres 9 cells of 0.05 apart differ by 0.4499999999999886 < 0.45 (the control);
+    the lines are moved by ulps so that robots on neighbouring vertices are never counted
+    too close by the exact checks."""
+    from planner.mapgrid import _apart
+
+    raw = np.array([13.575, 14.025, 14.475])
+    sep = 0.45
+    assert (np.diff(raw) < sep).any()
+    moved = _apart(raw, sep)
+    assert (np.diff(moved) >= sep).all() and np.abs(moved - raw).max() < 1e-12

@@ -150,19 +150,3 @@ def test_auto_mode_reports_the_pebble_graphs_it_built(monkeypatch):
     assert stats.graphs == len(rm.graphs) - 2 > 0  # besides the start's and the target's
     assert stats.connections == rm.graph.number_of_edges()
     assert stats.g == stats.graphs
-
-
-def test_snapping_rounds_accept_a_rounding_below_the_separation():
-    """Two robots stepping side by side exactly a separation apart, as computed from grid
-    lines (0.4499999999999886 for 0.45): no conflict, as for the exact validator; a real
-    shortfall of 1e-6 is one (the control)."""
-    from planner import Problem
-    from planner.lattice import _conflicts
-
-    p = Problem(20.0, 20.0, (), 0.2, 0.05, np.zeros((0, 2)), np.zeros((0, 2)))
-    gap = p.separation - 1.2e-14  # as 0.4499999999999886 for 0.45 (lines 9 cells of 0.05 apart)
-    a = np.array([[5.0, 5.0], [5.0, 5.0 + gap]])
-    b = a + [1.0, 0.0]
-    assert len(_conflicts(p, a, b, np.array([True, True]))) == 0
-    short = np.array([[5.0, 5.0], [5.0, 5.0 + p.separation - 1e-6]])
-    assert len(_conflicts(p, short, short + [1.0, 0.0], np.array([True, True]))) == 1
