@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from .grid import _in_rectangles
 from .problem import Problem
 
 __all__ = ["Lines", "door_lines", "map_grid"]
@@ -21,7 +22,7 @@ _TOL = 1e-9
 _MAX_VERTICES = 1_100_000  # grid points the grid stage builds at most
 
 
-def map_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
+def map_grid(problem: Problem) -> tuple[np.ndarray, float] | Lines | None:
     """``(offset, spacing c)`` of the cell centres of a map of cells, from its obstacles, or ``None``.
 
     A map's obstacles are axis-aligned rectangles whose sides lie on the cell
@@ -111,7 +112,7 @@ def door_lines(problem: Problem, origin: np.ndarray, s: float, mult: int) -> Lin
     cy = origin[1] + s * (np.arange(ky) + 0.5)
     gx, gy = np.meshgrid(cx, cy, indexing="ij")
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    clear = ~_in_rectangles_of(problem, pts, kx, ky)
+    clear = ~_in_rectangles(problem, pts, kx, ky)
     clear[clear] = problem.env.points_clear(pts[clear], problem.clearance)
     clear = clear.reshape(kx, ky)
     wide = 2 * mult - 1
@@ -138,12 +139,6 @@ def _apart(lines: np.ndarray, sep: float) -> np.ndarray:
         while out[k] - out[k - 1] < sep:
             out[k] = np.nextafter(out[k], math.inf)
     return out
-
-
-def _in_rectangles_of(problem: Problem, pts: np.ndarray, nx: int, ny: int) -> np.ndarray:
-    from .grid import _in_rectangles
-
-    return _in_rectangles(problem, pts, nx, ny)
 
 
 def _runs(clear: np.ndarray) -> np.ndarray:
