@@ -12,7 +12,9 @@ Formats
   an error naming its row and column (1-based, row 1 at the top).
   ROS map_server: a YAML mapping of ``image`` (PGM or PNG, relative to the
   YAML), ``resolution``, ``origin``, ``occupied_thresh``, ``free_thresh``,
-  ``negate`` and optional ``mode`` (``trinary`` or ``scale``).  A pixel ``p``
+  ``negate`` and optional ``mode`` (``trinary`` or ``scale``); other keys are
+  ignored, as map_server ignores them.  A colour pixel's grey is the mean of
+  its channels, as in map_server.  A pixel ``p``
   is occupied when ``(255 - p) / 255 > occupied_thresh`` (``p / 255`` with
   ``negate``), free when it is below ``free_thresh``; unknown pixels count
   as blocked (free space is never invented).
@@ -230,10 +232,8 @@ def _read_ros(path: Path) -> Grid:
         raise MapError(f"{name}: {exc.where}: {exc.reason}") from None
     if not isinstance(doc, dict):
         raise MapError(f"{name}: must hold a ROS map_server mapping (image, resolution, origin, ...)")
+    # other keys (a map_saver's own, a tool's notes) are ignored, as map_server ignores them
     known = ("image", "resolution", "origin", "occupied_thresh", "free_thresh", "negate", "mode")
-    for key in doc:
-        if key not in known:
-            raise MapError(f"{name}: unknown key {str(key)[:24]!r}; allowed: {', '.join(known)}")
     for key in known[:-1]:
         if key not in doc:
             raise MapError(f"{name}: {key} is required (a ROS map_server YAML)")
@@ -259,7 +259,7 @@ def _read_ros(path: Path) -> Grid:
     img = resolve(image, path.parent)
     if img.suffix.lower() not in _IMAGE_SUFFIXES:
         raise MapError(f"{name}: image {_name(img)} must be a PGM or PNG file")
-    grey = _read_grey(img, f"{name}: image {_name(img)}")
+    grey = _read_grey(img, f"{name}: image {_name(img)}", average=True)
     p = grey / 255.0 if negate else (255.0 - grey) / 255.0
     return Grid(~(p < free) | (p > occ), cell=res)  # unknown (between the thresholds) is blocked
 
@@ -274,8 +274,12 @@ def _ros_number(value, where: str, lo: float, hi: float) -> float:
 # images and bounded reads
 
 
-def _read_grey(path: Path, where: str | None = None) -> np.ndarray:
-    """Grey values 0..255 ``(rows, cols)`` float, the size checked from the header first."""
+def _read_grey(path: Path, where: str | None = None, average: bool = False) -> np.ndarray:
+    """Grey values 0..255 ``(rows, cols)`` float, the size checked from the header first.
+
+    ``average``: a colour pixel's grey is the mean of its red, green and blue
+    (as map_server reads a colour map) rather than its luminance.
+    """
     import io
 
     from PIL import Image
@@ -293,6 +297,8 @@ def _read_grey(path: Path, where: str | None = None) -> np.ndarray:
                 arr = np.asarray(im, np.float64)
                 top = 65535.0 if arr.max(initial=0) > 255 else 255.0
                 return arr * (255.0 / top)
+            if average and im.mode not in ("1", "L", "LA"):
+                return np.asarray(im.convert("RGB"), np.float64).mean(axis=2)
             return np.asarray(im.convert("L"), np.float64)
     except MapError:
         raise

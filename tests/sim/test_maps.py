@@ -178,6 +178,20 @@ def test_ros_thresholds_and_negate(tmp_path):
     assert g.blocked.tolist() == [[True, False, False, False, False]]
 
 
+def test_ros_map_saver_extras_and_colour(tmp_path):
+    """Keys map_server does not read are ignored; a colour pixel's grey is its channels' mean."""
+    rgb = np.full((1, 3, 3), 254, np.uint8)
+    rgb[0, 0] = (0, 0, 0)
+    rgb[0, 1] = (255, 255, 0)  # yellow: mean 170, occupancy 0.33 (unknown); its luminance 226 would be free
+    Image.fromarray(rgb).save(tmp_path / "m.png")
+    (tmp_path / "m.yaml").write_text("image: m.png\nmode: trinary\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\n"
+                                     "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n"
+                                     "map_name: floor2\nsaved_by: map_saver_cli\n")
+    assert read_grid(tmp_path / "m.yaml").blocked.tolist() == [[True, True, False]]
+    # the same image read as a plain PNG: luminance against the threshold 128
+    assert read_grid(tmp_path / "m.png").blocked.tolist() == [[True, False, False]]
+
+
 def test_ros_cell_defaults_to_resolution(tmp_path):
     values = np.full((8, 12), 254)
     values[2:4, 3:9] = 0
