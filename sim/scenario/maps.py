@@ -165,7 +165,7 @@ def _read_movingai(path: Path) -> Grid:
     header = {}
     for i, want in enumerate(("type", "height", "width", "map")):
         line = lines[i].strip() if i < len(lines) else ""
-        word, _, value = line.partition(" ")
+        word, value = (line.split(None, 1) + ["", ""])[:2]  # any whitespace between (some files use tabs)
         if word.lower() != want:
             shown = line if len(line) <= 30 else line[:27] + "..."
             raise MapError(f"{name} line {i + 1}: expected {want!r} (a MovingAI map starts with type, height, "

@@ -84,6 +84,12 @@ def test_movingai_cells_and_cover(tmp_path):
     _check_cover(grid, 1.5)
 
 
+def test_movingai_header_tabs_and_crlf(tmp_path):
+    path = tmp_path / "tabs.map"
+    path.write_bytes(b"type\toctile\r\nheight  2\r\nwidth\t3\r\nmap\r\n..@\r\nT..\r\n")
+    assert read_grid(path).blocked.tolist() == [[False, False, True], [True, False, False]]
+
+
 def test_row_zero_is_the_top(tmp_path):
     path = tmp_path / "top.map"
     path.write_text("type octile\nheight 3\nwidth 2\nmap\n@.\n..\n..\n")
