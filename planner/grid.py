@@ -65,8 +65,15 @@ def grid_graph(problem: Problem, pts: np.ndarray, nx: int, ny: int,
     from scipy.sparse.csgraph import connected_components
 
     c = problem.clearance if clearance is None else clearance
+    env = problem.env
+    skip = _cell_rectangles(problem, pts, nx, ny, spacing, c)
+    if skip is not None and skip.any():  # a map's cells: only the other obstacles need the exact tests
+        from .geometry import Environment
+
+        env = Environment.build(problem.width, problem.height,
+                                [ob for k, ob in enumerate(problem.obstacles) if not skip[k]])
     ok = ~_in_rectangles(problem, pts, nx, ny)
-    ok[ok] = problem.env.points_clear(pts[ok], c)
+    ok[ok] = env.points_clear(pts[ok], c)
     vid = np.full(nx * ny, -1)
     vid[ok] = np.arange(int(ok.sum()))
     vid = vid.reshape(nx, ny)
@@ -79,7 +86,7 @@ def grid_graph(problem: Problem, pts: np.ndarray, nx: int, ny: int,
         both = (a >= 0) & (b >= 0)
         a, b = a[both], b[both]
         if len(a):
-            clear = problem.env.segments_clear(pts[a], pts[b], c)
+            clear = env.segments_clear(pts[a], pts[b], c)
             a, b = a[clear], b[clear]
         nbr[a, k] = b  # right / up
         nbr[b, k + 2] = a  # left / down
@@ -91,33 +98,89 @@ def grid_graph(problem: Problem, pts: np.ndarray, nx: int, ny: int,
     return Lattice(pts, nbr, float(spacing), comp), ok, vid
 
 
+def _rectangles(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """``(boxes (k, 4) as lo_x, lo_y, hi_x, hi_y, their obstacle indices (k,))`` of the
+    obstacles that are axis-aligned rectangles (every vertex a corner of its bounding box)."""
+    cached = problem.__dict__.get("_axis_rectangles")
+    if cached is not None:
+        return cached
+    box, idx = [], []
+    for k, ob in enumerate(problem.obstacles):
+        v = np.asarray(getattr(ob, "vertices", np.zeros((0, 2))), float)
+        if len(v) != 4:
+            continue
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        if all(((p == lo) | (p == hi)).all() for p in v) and (hi > lo).all():
+            box.append(np.concatenate([lo, hi]))
+            idx.append(k)
+    out = problem.__dict__["_axis_rectangles"] = (np.asarray(box, float).reshape(-1, 4), np.asarray(idx, int))
+    return out
+
+
+def _axis_lines(pts: np.ndarray, nx: int, ny: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The x and y lines of an axis-aligned ``(nx, ny)`` grid of points (x-major), or ``None``."""
+    if nx < 2 or ny < 2:
+        return None
+    g = pts.reshape(nx, ny, 2)
+    xs, ys = g[:, 0, 0], g[0, :, 1]
+    if (g[:, :, 0] != xs[:, None]).any() or (g[:, :, 1] != ys[None, :]).any() \
+            or (np.diff(xs) <= 0).any() or (np.diff(ys) <= 0).any():
+        return None
+    return xs, ys
+
+
+def _cell_rectangles(problem: Problem, pts: np.ndarray, nx: int, ny: int, spacing: float,
+                     clearance: float) -> np.ndarray | None:
+    """Which obstacles no edge between two clear grid points can come near, or ``None``.
+
+    On an evenly spaced axis-aligned grid whose points are the centres of square
+    cells of side ``spacing``, take a rectangle obstacle whose sides lie on the cell
+    lines (midway between grid lines): a map's blocked cells.  A clear point is not
+    in it, so it is a union of whole cells other than the two cells an edge joins;
+    the edge lies in those two closed cells, so every point of the rectangle is at
+    least ``spacing / 2`` from it (a row above or below, or a cell beyond either end
+    of the row).  With ``spacing / 2`` at least ``clearance``, such an edge is
+    clear of it, and only the other obstacles need the exact test; so does a grid
+    point outside it (its own cell is free, every other cell ``spacing / 2`` away).
+    """
+    lines = _axis_lines(pts, nx, ny)
+    if lines is None or not problem.obstacles:
+        return None
+    xs, ys = lines
+    tol = 1e-9 * max(problem.width, problem.height, 1.0)
+    if np.abs(np.diff(xs) - spacing).max() > tol or np.abs(np.diff(ys) - spacing).max() > tol \
+            or spacing / 2 - 4 * tol < clearance:
+        return None
+    b, idx = _rectangles(problem)
+    out = np.zeros(len(problem.obstacles), bool)
+    if not len(b):
+        return out
+
+    def on_cell_lines(v: np.ndarray, first: float) -> np.ndarray:
+        k = (v - first) / spacing - 0.5
+        return np.abs(k - np.round(k)) * spacing <= tol
+
+    ok = on_cell_lines(b[:, 0], xs[0]) & on_cell_lines(b[:, 2], xs[0]) \
+        & on_cell_lines(b[:, 1], ys[0]) & on_cell_lines(b[:, 3], ys[0])
+    out[idx[ok]] = True
+    return out
+
+
 def _in_rectangles(problem: Problem, pts: np.ndarray, nx: int, ny: int) -> np.ndarray:
     """Grid points in a closed axis-aligned rectangle obstacle (a map's blocked cells):
     at distance 0 from it, so never clear.  Marked by index ranges on the regular
     grid in time linear in rectangles plus points, so that the exact test only sees
     the rest (on a map of a million cells, most of them are blocked)."""
     out = np.zeros(nx * ny, bool)
-    if nx < 2 or ny < 2 or not problem.obstacles:
-        return out
-    g = pts.reshape(nx, ny, 2)
-    xs, ys = g[:, 0, 0], g[0, :, 1]
     # only an axis-aligned grid, its lines evenly spaced or not (a rotated one, as the door
     # stage's, is left to the exact test)
-    if (g[:, :, 0] != xs[:, None]).any() or (g[:, :, 1] != ys[None, :]).any() \
-            or (np.diff(xs) <= 0).any() or (np.diff(ys) <= 0).any():
+    lines = _axis_lines(pts, nx, ny)
+    if lines is None or not problem.obstacles:
         return out
-    box = []
-    for ob in problem.obstacles:
-        v = np.asarray(getattr(ob, "vertices", np.zeros((0, 2))), float)
-        if len(v) != 4:
-            continue
-        lo, hi = v.min(axis=0), v.max(axis=0)
-        # a rectangle: every vertex a corner of its bounding box
-        if all(((p == lo) | (p == hi)).all() for p in v) and (hi > lo).all():
-            box.append(np.concatenate([lo, hi]))
-    if not box:
+    xs, ys = lines
+    b, _ = _rectangles(problem)
+    if not len(b):
         return out
-    b = np.asarray(box)
     # the closed range of grid lines inside each box, by the lines' exact coordinates:
     # points ia..ib-1, ja..jb-1 lie in the closed box
     ia, ib = np.searchsorted(xs, b[:, 0], side="left"), np.searchsorted(xs, b[:, 2], side="right")
