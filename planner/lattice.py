@@ -52,6 +52,7 @@ from scipy.spatial import cKDTree
 from .geometry import closest_approach
 from .grid import _SLACK, Lattice, build_lattice, lattice_spacing
 from .problem import Problem
+from .snappush import push
 from .tswap import tswap
 
 __all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", "lattice_waypoints", "snap", "tswap"]
@@ -60,6 +61,7 @@ __all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", 
 # ----------------------------------------------------------------------------
 # snapping
 
+_PUSH_TRIES = 16  # robots still to snap tried for a push (planner.snappush) when a round moves nobody
 _REACH = 8.0  # a robot snaps to lattice vertices at most this many spacings away
 
 
@@ -156,10 +158,59 @@ def _conflicts(problem: Problem, a: np.ndarray, b: np.ndarray, moving: np.ndarra
     return np.stack([i[close], j[close]], axis=1)
 
 
-def _round(problem: Problem, pos: np.ndarray, dest: np.ndarray, todo: np.ndarray) -> np.ndarray:
+def _round(problem: Problem, pos: np.ndarray, dest: np.ndarray, todo: np.ndarray,
+           hold_back: bool = False) -> np.ndarray:
     """The robots that move in one round: all of ``todo`` at first; while some pair
     conflicts, a mover conflicting with a waiting robot waits, else the mover of a
-    conflicting pair with more conflicts waits."""
+    conflicting pair with more conflicts waits (with ``hold_back``, first without the
+    robots whose destination lies in another's way).  When that leaves nobody moving, the
+    first robot of ``todo`` that can move alone does (two robots whose moves cross,
+    one passing where the other stands: the greedy choice may stop the wrong one)."""
+    later = _in_the_way(problem, pos, dest, todo) if hold_back else np.zeros_like(todo)
+    movers = _greedy_round(problem, pos, dest, todo & ~later) if (todo & ~later).any() else np.zeros_like(todo)
+    if not movers.any():
+        movers = _greedy_round(problem, pos, dest, todo)
+    if movers.any() or not todo.any():
+        return movers
+    for i in np.flatnonzero(todo)[:_ALONE_TRIES]:
+        alone = np.zeros_like(todo)
+        alone[i] = True
+        if len(_conflicts(problem, pos, np.where(alone[:, None], dest, pos), alone)) == 0:
+            return alone
+    return movers
+
+
+_ALONE_TRIES = 64  # robots tried one at a time when the greedy round moves nobody
+
+
+def _in_the_way(problem: Problem, pos: np.ndarray, dest: np.ndarray, todo: np.ndarray) -> np.ndarray:
+    """Robots of ``todo`` whose destination lies closer than the separation to the move
+    of another robot of ``todo`` (exact): on a dense lattice, a robot that settles there
+    first would stop the other for good."""
+    from .geometry import point_segment_distance
+
+    out = np.zeros(len(pos), bool)
+    idx = np.flatnonzero(todo)
+    if len(idx) < 2:
+        return out
+    a, b = pos[idx], dest[idx]
+    mid = 0.5 * (a + b)
+    half = 0.5 * np.linalg.norm(b - a, axis=1)
+    sep = problem.separation
+    lists = cKDTree(dest[idx]).query_ball_point(mid, half + sep, return_sorted=False)
+    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    if counts.sum() == 0:
+        return out
+    seg = np.repeat(np.arange(len(idx)), counts)
+    who = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
+    keep = who != seg
+    seg, who = seg[keep], who[keep]
+    close = point_segment_distance(b[who], a[seg], b[seg]) < sep
+    out[idx[who[close]]] = True
+    return out
+
+
+def _greedy_round(problem: Problem, pos: np.ndarray, dest: np.ndarray, todo: np.ndarray) -> np.ndarray:
     movers = todo.copy()
     while movers.any():
         b = np.where(movers[:, None], dest, pos)
@@ -183,10 +234,21 @@ def snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float,
 
     Returns ``(steps, vertex of each robot)``.  Each round is one step moving
     the robots :func:`_round` lets go at once (exact).  When a round can move
-    nobody, the robots still to move get new vertices whose straight moves pass
-    no other robot where it stands, so that the next round moves some.
+    nobody, settled robots make room for one still to move
+    (:func:`planner.snappush.push`), or failing that the robots still to move get
+    new vertices whose straight moves pass no other robot where it stands, so
+    that the next round moves some.  A try that fails is made again with the
+    robots whose destination lies in another's way held back a round.
     ``None`` when no such vertices exist or the deadline passes.
     """
+    got = _snap(problem, lat, placement, deadline, max_rounds, False)
+    if got is None and time.perf_counter() < deadline:  # a crowd: robots that would fence others in wait
+        got = _snap(problem, lat, placement, deadline, max_rounds, True)
+    return got
+
+
+def _snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float, max_rounds: int,
+          hold_back: bool) -> tuple[list[np.ndarray], np.ndarray] | None:
     m = len(placement)
     pos = np.array(placement, float)
     everyone = np.arange(m)
@@ -208,11 +270,20 @@ def snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float,
             return steps, vert
         if time.perf_counter() > deadline:
             return None
-        movers = _round(problem, pos, dest, todo)
+        movers = _round(problem, pos, dest, todo, hold_back)
         if movers.any():
             pos = np.where(movers[:, None], dest, pos)
             steps.append(pos.copy())
             stuck = 0
+            continue
+        pushed = None
+        for r in np.flatnonzero(todo)[:_PUSH_TRIES]:  # make room among the settled robots
+            pushed = push(problem, lat, pos, vert, todo, int(r), deadline)
+            if pushed is not None:
+                break
+        if pushed is not None:
+            steps += pushed[0]
+            pos, vert = pushed[1], pushed[2]
             continue
         stuck += 1
         if stuck > 3:
@@ -220,7 +291,7 @@ def snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float,
         left = np.flatnonzero(todo)
         taken = np.zeros(lat.n, bool)
         taken[vert[~todo]] = True
-        new = _assign(problem, lat, pos, left, taken, hard=~todo, k=48)
+        new = _assign(problem, lat, pos, left, taken, hard=~todo, k=48 if stuck < 2 else 144)
         if new is None:
             return None
         vert = vert.copy()
