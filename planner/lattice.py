@@ -65,26 +65,31 @@ _PUSH_TRIES = 16  # robots still to snap tried for a push (planner.snappush) whe
 _REACH = 8.0  # a robot snaps to lattice vertices at most this many spacings away
 
 
+def _close_pairs(a: np.ndarray, b: np.ndarray, pts: np.ndarray, sep: float,
+                 tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(segment, point)`` index pairs whose point of ``pts`` lies closer than ``sep`` to
+    the segment ``a -> b`` (exact, over the KD-tree's candidates; ``tree`` is over ``pts``)."""
+    from .geometry import point_segment_distance
+
+    mid = 0.5 * (a + b)
+    half = 0.5 * np.linalg.norm(b - a, axis=1)
+    lists = (cKDTree(pts) if tree is None else tree).query_ball_point(mid, half + sep, return_sorted=False)
+    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    seg = np.repeat(np.arange(len(a)), counts)
+    who = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
+    if len(seg) == 0:
+        return seg, who
+    close = point_segment_distance(pts[who], a[seg], b[seg]) < sep
+    return seg[close], who[close]
+
+
 def _near_segments(problem: Problem, a: np.ndarray, b: np.ndarray, owner: np.ndarray,
                    pos: np.ndarray, tree: cKDTree, ids: np.ndarray | None = None) -> np.ndarray:
     """For each segment ``a -> b`` of robot ``owner``: whether another robot's position in
     ``pos`` lies closer than the separation to it (exact, over the KD-tree's candidates)."""
-    from .geometry import point_segment_distance
-
-    sep = problem.separation
-    mid = 0.5 * (a + b)
-    half = 0.5 * np.linalg.norm(b - a, axis=1)
-    lists = tree.query_ball_point(mid, half + sep, return_sorted=False)
-    counts = np.fromiter((len(x) for x in lists), int, len(lists))
+    seg, who = _close_pairs(a, b, pos, problem.separation, tree)
     out = np.zeros(len(a), bool)
-    if counts.sum() == 0:
-        return out
-    seg = np.repeat(np.arange(len(a)), counts)
-    who = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
-    keep = (who if ids is None else ids[who]) != owner[seg]
-    seg, who = seg[keep], who[keep]
-    d = point_segment_distance(pos[who], a[seg], b[seg])
-    out[seg[d < sep]] = True
+    out[seg[(who if ids is None else ids[who]) != owner[seg]]] = True
     return out
 
 
@@ -187,26 +192,11 @@ def _in_the_way(problem: Problem, pos: np.ndarray, dest: np.ndarray, todo: np.nd
     """Robots of ``todo`` whose destination lies closer than the separation to the move
     of another robot of ``todo`` (exact): on a dense lattice, a robot that settles there
     first would stop the other for good."""
-    from .geometry import point_segment_distance
-
     out = np.zeros(len(pos), bool)
     idx = np.flatnonzero(todo)
-    if len(idx) < 2:
-        return out
-    a, b = pos[idx], dest[idx]
-    mid = 0.5 * (a + b)
-    half = 0.5 * np.linalg.norm(b - a, axis=1)
-    sep = problem.separation
-    lists = cKDTree(dest[idx]).query_ball_point(mid, half + sep, return_sorted=False)
-    counts = np.fromiter((len(x) for x in lists), int, len(lists))
-    if counts.sum() == 0:
-        return out
-    seg = np.repeat(np.arange(len(idx)), counts)
-    who = np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
-    keep = who != seg
-    seg, who = seg[keep], who[keep]
-    close = point_segment_distance(b[who], a[seg], b[seg]) < sep
-    out[idx[who[close]]] = True
+    if len(idx) >= 2:
+        seg, who = _close_pairs(pos[idx], dest[idx], dest[idx], problem.separation)
+        out[idx[who[who != seg]]] = True
     return out
 
 

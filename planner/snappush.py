@@ -25,15 +25,15 @@ from collections import deque
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .geometry import closest_approach, point_segment_distance
+from .geometry import point_segment_distance
 from .grid import Lattice
 from .problem import Problem
 
 __all__ = ["push"]
 
 _CANDIDATES = 48  # nearest vertices tried as the fenced robot's entry
-_MAX_PATH = 40
-_ENTRIES = 8  # entry vertices a push tries  # lattice edges a push may shift robots along
+_MAX_PATH = 40  # lattice edges a push may shift robots along
+_ENTRIES = 8  # entry vertices a push tries
 
 
 def _single_clear(problem: Problem, pos: np.ndarray, r: int, b: np.ndarray) -> bool:
@@ -42,12 +42,9 @@ def _single_clear(problem: Problem, pos: np.ndarray, r: int, b: np.ndarray) -> b
     a = pos[r]
     if not problem.env.segments_clear(a[None], b[None], problem.clearance)[0]:
         return False
-    others = np.delete(np.arange(len(pos)), r)
-    if not len(others):
-        return True
-    d = closest_approach(np.repeat(a[None], len(others), 0), np.repeat(b[None], len(others), 0),
-                         pos[others], pos[others])
-    return bool(d.min() >= problem.separation)
+    d = point_segment_distance(pos, a[None], b[None]).ravel()
+    d[r] = np.inf
+    return bool(d.min(initial=np.inf) >= problem.separation)
 
 
 def push(problem: Problem, lat: Lattice, pos: np.ndarray, vert: np.ndarray, todo: np.ndarray, r: int,
@@ -63,13 +60,14 @@ def push(problem: Problem, lat: Lattice, pos: np.ndarray, vert: np.ndarray, todo
     reserved[vert[r]] = False
     loose = np.flatnonzero(todo)
     loose = loose[loose != r]
+    tree = cKDTree(lat.points)
     near_loose = np.zeros(lat.n, bool)  # vertices too close to a robot not yet on the lattice
     if len(loose):
-        hits = cKDTree(lat.points).query_ball_point(pos[loose], sep)
+        hits = tree.query_ball_point(pos[loose], sep)
         for h in hits:
             near_loose[h] = True
     k = min(_CANDIDATES, lat.n)
-    _, cand = cKDTree(lat.points).query(pos[r], k=k)
+    _, cand = tree.query(pos[r], k=k)
     away = pos[np.append(loose, r)]
     tried = 0
     for v in np.atleast_1d(cand):
