@@ -52,6 +52,7 @@ __all__ = [
     "PlanStats",
     "min_jerk",
     "min_jerk_s",
+    "note_ignored",
     "read_plan_file",
     "step_duration",
 ]
@@ -234,6 +235,21 @@ class Plan:
 # plan files
 
 
+#: Unknown top-level keys of a plan file named in the note that they were ignored.
+IGNORED_SHOWN = 8
+
+
+def note_ignored(path, extra: dict, stream=None) -> None:
+    """One line on ``stream`` (stderr) naming the top-level keys of a plan file that
+    :func:`read_plan_file` did not read, when there were any."""
+    import sys
+
+    keys = extra.get("ignored")
+    if keys:
+        print(f"note: {path}: keys this version does not read were ignored: {', '.join(keys)}",
+              file=sys.stderr if stream is None else stream)
+
+
 def read_plan_file(path: str | Path) -> tuple["Plan", dict]:
     """A plan file and its other top-level values (``seed``, ``scenario``), every field checked.
 
@@ -246,7 +262,9 @@ def read_plan_file(path: str | Path) -> tuple["Plan", dict]:
     optionally ``profile`` (``minimum_jerk``), ``max_speed`` and
     ``max_accel`` (numbers > 0), ``seed`` (an integer in [0, 2^63 - 1]) and
     ``stats`` (the PlanStats fields, each of its type).  A key may not be
-    repeated; a top-level key not in :data:`PLAN_KEYS` is refused; at most
+    repeated; a top-level key not in :data:`PLAN_KEYS` is ignored (the plan file
+    contract: other keys may follow) and named, in file order and at most
+    :data:`IGNORED_SHOWN` of them, under ``"ignored"`` of the returned values; at most
     :data:`planner.inputfile.MAX_JSON_CONTAINERS` lists and objects.  Raises :class:`PlanFileError` naming the file, the field and
     the reason, with the value received cut to about 80 characters.
     """
@@ -262,13 +280,12 @@ def read_plan_file(path: str | Path) -> tuple["Plan", dict]:
     except JsonRefused as exc:
         raise PlanFileError(source, exc.where, exc.reason) from None
     del text
-    if isinstance(d, dict):
-        for key in d:
-            if key not in PLAN_KEYS:
-                raise PlanFileError(source, echo_key(key), "is not a plan file key (known: "
-                                    + ", ".join(sorted(PLAN_KEYS)) + ")")
+    unknown = [k for k in d if k not in PLAN_KEYS] if isinstance(d, dict) else []
     p = _plan_from_dict(Plan, d, source)
-    extra = {}
+    extra: dict = {}
+    if unknown:
+        extra["ignored"] = [echo_key(k) for k in unknown[:IGNORED_SHOWN]] + (
+            [f"and {len(unknown) - IGNORED_SHOWN} more"] if len(unknown) > IGNORED_SHOWN else [])
     if "seed" in d:
         extra["seed"] = _integer(d["seed"], source, "seed", 0, 2**63 - 1)
     if "scenario" in d:

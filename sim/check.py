@@ -158,12 +158,13 @@ def _write_baseline(path: Path, report: dict) -> None:
 
 def _match_plans(plans, scenarios: dict[str, Path]) -> dict[str, Path]:
     """Plan file for each scenario name: the file's ``scenario`` key names it, or the only scenario."""
-    from planner.plan import read_plan_file
+    from planner.plan import note_ignored, read_plan_file
 
     out: dict[str, Path] = {}
     for raw in plans or ():
         path = Path(raw)
         _plan, extra = read_plan_file(path)
+        note_ignored(path, extra)
         name = extra.get("scenario")
         if name is None:
             if len(scenarios) != 1:

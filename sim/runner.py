@@ -25,7 +25,7 @@ import numpy as np
 from planner import NoPlanFound, Plan, PlanStats, min_clearance
 from planner.bounds import lower_bounds
 from planner.inputfile import echo_path
-from planner.plan import read_plan_file
+from planner.plan import note_ignored, read_plan_file
 
 from .errors import InputError
 from .execute.budget import check_physics_budget, check_validator_budget
@@ -113,6 +113,7 @@ def run_scenario(
     loaded = None
     if plan_path is not None:
         loaded, recorded = read_plan_file(plan_path)
+        note_ignored(plan_path, recorded)
         seed = recorded.get("seed") if seed is None else seed
     seed = scenario.seed if seed is None else seed
     rng = scenario.generator(seed)

@@ -121,7 +121,7 @@ def cmd_export(args) -> int:
     import sys
     from pathlib import Path
 
-    from planner.plan import read_plan_file
+    from planner.plan import note_ignored, read_plan_file
 
     from ..errors import InputError
     from .files import check_out_dir, check_out_file
@@ -133,7 +133,8 @@ def cmd_export(args) -> int:
         check_out_dir(folder, "-o")
     elif args.output:
         check_out_file(args.output, "-o")
-    plan, _extra = read_plan_file(plan_path)
+    plan, extra = read_plan_file(plan_path)
+    note_ignored(plan_path, extra)
     if args.format == "poly":
         pieces = poly_pieces(plan, args.height)
         folder.mkdir(parents=True, exist_ok=True)

@@ -69,7 +69,6 @@ CORPUS = {
     "count-hex.yaml": ("robots.count", "got string '0x1F'"),
     "max-speed-underscore.yaml": ("robots.max_speed", "got string '1_000' (numbers are written in decimal only"),
     "plan-duplicate-key.json": ("radius", "is given twice"),
-    "plan-unknown-key.json": ("colour", "is not a plan file key (known: durations"),
     "text-no-skeleton.yaml": ("target.formation.text", "'.' traces to a single point, no line to place robots"),
     "text-no-skeleton-count.yaml": ("target.formation.text", "'.' traces to a single point"),
     "text-number.yaml": ("target.formation.text", 'must be a string, got number 12345 (write it in quotes'),
