@@ -52,7 +52,7 @@ from scipy.spatial import cKDTree
 from .geometry import closest_approach
 from .grid import _SLACK, Lattice, build_lattice, lattice_spacing
 from .problem import Problem
-from .snappush import push
+from .snappush import pocket_corners, push
 from .tswap import tswap
 
 __all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", "lattice_waypoints", "snap", "tswap"]
@@ -249,12 +249,24 @@ def _snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float
         vert = _assign(problem, lat, pos, everyone, np.zeros(lat.n, bool), k=k)
         if vert is not None:
             break
+    via: dict[int, list[np.ndarray]] = {}  # corners a robot in a pocket passes on its way to its vertex
+    if vert is None and time.perf_counter() < deadline:
+        via = pocket_corners(problem, lat, pos, _REACH * lat.spacing, deadline)
+        if via:
+            vert = _assign(problem, lat, _through_corners(pos, via), everyone, np.zeros(lat.n, bool), k=144)
     if vert is None:
         return None
-    steps = []
+    steps: list[np.ndarray] = []
     stuck = 0
     for _ in range(max_rounds):
-        dest = lat.points[vert]
+        dest = lat.points[vert].copy()
+        for r in list(via):
+            while via[r] and np.array_equal(pos[r], via[r][0]):
+                via[r].pop(0)
+            if not via[r] or np.array_equal(pos[r], dest[r]):
+                del via[r]
+            else:
+                dest[r] = via[r][0]
         todo = np.any(pos != dest, axis=1)
         if not todo.any():
             return steps, vert
@@ -281,12 +293,23 @@ def _snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float
         left = np.flatnonzero(todo)
         taken = np.zeros(lat.n, bool)
         taken[vert[~todo]] = True
-        new = _assign(problem, lat, pos, left, taken, hard=~todo, k=48 if stuck < 2 else 144)
+        new = _assign(problem, lat, _through_corners(pos, via), left, taken, hard=~todo,
+                      k=48 if stuck < 2 else 144)
         if new is None:
             return None
         vert = vert.copy()
         vert[left] = new
     return None
+
+
+def _through_corners(pos: np.ndarray, via: dict[int, list[np.ndarray]]) -> np.ndarray:
+    """Positions with each robot still to pass corners (``via``) at its last corner: the
+    place its straight move onto a vertex starts from."""
+    out = pos.copy()
+    for r, corners in via.items():
+        if corners:
+            out[r] = corners[-1]
+    return out
 
 
 # ----------------------------------------------------------------------------

@@ -164,3 +164,100 @@ def _shift(problem: Problem, lat: Lattice, pos: np.ndarray, vert: np.ndarray, oc
         vert[who] = path[i + 1]
         rounds.append(pos.copy())
     return pos, vert, rounds
+
+
+
+
+_POCKET_NODES = 161  # nodes a side of the fine grid a robot in a pocket searches for a way out
+
+
+def pocket_corners(problem: Problem, lat: Lattice, pos: np.ndarray, reach: float, deadline: float,
+                   k: int = 144) -> dict[int, list[np.ndarray]]:
+    """Corners by which each robot that no straight move clear of the obstacles brings onto
+    one of its ``k`` nearest vertices within ``reach`` (a pocket between desks) gets out:
+    ``{robot: [corner, ...]}``, the last corner seeing a vertex.  The robot snaps through
+    them, one straight round each (:func:`pocket_path`).  Robots with no way out found are
+    left out."""
+    env, cl = problem.env, problem.clearance
+    k = min(k, lat.n)
+    tree = cKDTree(lat.points)
+    _, j = tree.query(pos, k=k, distance_upper_bound=reach)
+    j = np.asarray(j).reshape(len(pos), k)
+    out: dict[int, list[np.ndarray]] = {}
+    for r in range(len(pos)):
+        cand = j[r][j[r] < lat.n]
+        if time.perf_counter() > deadline:
+            break
+        if len(cand) and env.segments_clear(np.repeat(pos[[r]], len(cand), axis=0), lat.points[cand], cl).any():
+            continue
+        way = pocket_path(problem, lat, tree, pos[r], reach)
+        if way:
+            out[r] = way
+    return out
+
+
+def pocket_path(problem: Problem, lat: Lattice, tree: cKDTree, a: np.ndarray, reach: float) -> list[np.ndarray]:
+    """Corners of a way from ``a`` out of a pocket, clear of the obstacles (every leg exact),
+    to a point that sees a lattice vertex, or ``[]``.  Breadth-first search over a fine
+    square grid centred on ``a`` (4-neighbour edges tested exactly; the spacing
+    ``min(clearance, lattice spacing) / 8`` finds gaps at least that wide), the
+    nearest reached node that sees one of its four nearest vertices kept, and the
+    path pulled taut: from each corner the farthest later node it sees."""
+    from collections import deque as _deque
+
+    env, cl = problem.env, problem.clearance
+    h = min(cl, lat.spacing) / 8
+    half = min(_POCKET_NODES // 2, int(np.ceil(reach / h)))
+    side = 2 * half + 1
+    ii, jj = np.meshgrid(np.arange(side), np.arange(side), indexing="ij")
+    pts = a + h * np.stack([ii.ravel() - half, jj.ravel() - half], axis=1)
+    free = env.points_clear(pts, cl)
+    centre = half * side + half
+    free[centre] = True
+    # edges right (i + 1) and up (j + 1) between free nodes, each tested exactly
+    edge_ok = np.zeros((2, side * side), bool)
+    for axis, step in ((0, side), (1, 1)):
+        inside = (ii.ravel() < side - 1) if axis == 0 else (jj.ravel() < side - 1)
+        u = np.flatnonzero(inside & free)
+        u = u[free[u + step]]
+        edge_ok[axis, u] = env.segments_clear(pts[u], pts[u + step], cl)
+    parent = np.full(side * side, -1)
+    parent[centre] = centre
+    order = [centre]
+    queue = _deque([centre])
+    while queue:
+        u = queue.popleft()
+        for w, ok in ((u + side, edge_ok[0, u]), (u - side, u >= side and edge_ok[0, u - side]),
+                      (u + 1, edge_ok[1, u]), (u - 1, u % side > 0 and edge_ok[1, u - 1])):
+            if ok and parent[w] < 0:
+                parent[w] = u
+                order.append(w)
+                queue.append(w)
+    order_a = np.asarray(order)
+    _, near = tree.query(pts[order_a], k=min(4, lat.n))
+    near = np.asarray(near).reshape(len(order_a), -1)
+    goal = -1
+    for lo in range(0, len(order_a), 512):
+        blk = order_a[lo:lo + 512]
+        v = near[lo:lo + 512]
+        sees = env.segments_clear(np.repeat(pts[blk], v.shape[1], axis=0), lat.points[v.ravel()], cl)
+        hit = np.flatnonzero(sees.reshape(len(blk), -1).any(axis=1))
+        if len(hit):
+            goal = int(blk[hit[0]])
+            break
+    if goal < 0 or goal == centre:
+        return []
+    path = [goal]
+    while path[-1] != centre:
+        path.append(int(parent[path[-1]]))
+    path = path[::-1]
+    corners: list[np.ndarray] = []
+    at = 0
+    while at < len(path) - 1:
+        later = np.asarray(path[at + 1:])
+        seen = env.segments_clear(np.repeat(pts[[path[at]]], len(later), axis=0), pts[later], cl)
+        # the farthest node seen (the next one always is: its edge is clear)
+        nxt = at + 1 + int(np.flatnonzero(seen)[-1])
+        corners.append(pts[path[nxt]])
+        at = nxt
+    return corners

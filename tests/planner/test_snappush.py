@@ -48,6 +48,46 @@ def test_crowded_snapping_succeeds_and_every_round_is_exact(tmp_path, seed, side
     assert lattice.snap(problem, lat, placement, time.perf_counter() + 30) is None
 
 
+# seeds 4 and 15: a robot starts in a pocket between desks whose only way out is a gap
+# the robot barely fits, off every grid line (seed 15: up 0.05, right 0.9, then a vertex)
+@pytest.mark.parametrize("seed", [4, 15])
+def test_a_robot_in_a_pocket_snaps_through_corners(tmp_path, seed, monkeypatch):
+    import time
+
+    problem, lat = _office(tmp_path, seed)
+    got = lattice.snap(problem, lat, problem.start, time.perf_counter() + 30)
+    assert got is not None
+    steps, vert = got
+    assert len(np.unique(vert)) == problem.m
+    w = np.asarray([problem.start, *steps])
+    assert np.array_equal(w[-1], lat.points[vert])
+    assert steps_clear(problem, w[:-1], w[1:]).all()
+    # the negative control: without the way out of the pocket, the snapping fails
+    monkeypatch.setattr(lattice, "pocket_corners", lambda *args: {})
+    assert lattice.snap(problem, lat, problem.start, time.perf_counter() + 30) is None
+
+
+def test_pocket_path_legs_are_clear_and_end_in_sight_of_a_vertex(tmp_path):
+    from scipy.spatial import cKDTree
+
+    from planner.snappush import pocket_path
+
+    problem, lat = _office(tmp_path, 15)
+    tree = cKDTree(lat.points)
+    env, cl = problem.env, problem.clearance
+    pocket = [r for r in range(problem.m)
+              if not env.segments_clear(np.repeat(problem.start[[r]], 144, axis=0),
+                                        lat.points[tree.query(problem.start[r], k=144)[1]], cl).any()]
+    assert pocket
+    for r in pocket:
+        way = pocket_path(problem, lat, tree, problem.start[r], 8 * lat.spacing)
+        assert way
+        legs = np.asarray([problem.start[r], *way])
+        assert env.segments_clear(legs[:-1], legs[1:], cl).all()
+        near = lat.points[tree.query(way[-1], k=4)[1]]
+        assert env.segments_clear(np.repeat(way[-1][None], 4, axis=0), near, cl).any()
+
+
 def test_office_with_200_robots_plans(tmp_path):
     from planner import PlannerParams, plan
 
