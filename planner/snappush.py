@@ -169,6 +169,7 @@ def _shift(problem: Problem, lat: Lattice, pos: np.ndarray, vert: np.ndarray, oc
 
 
 _POCKET_NODES = 161  # nodes a side of the fine grid a robot in a pocket searches for a way out
+_POCKET_ROBOTS = 64  # robots in pockets sought a way out at most (more: none is)
 
 
 def pocket_corners(problem: Problem, lat: Lattice, pos: np.ndarray, reach: float, deadline: float,
@@ -177,19 +178,23 @@ def pocket_corners(problem: Problem, lat: Lattice, pos: np.ndarray, reach: float
     one of its ``k`` nearest vertices within ``reach`` (a pocket between desks) gets out:
     ``{robot: [corner, ...]}``, the last corner seeing a vertex.  The robot snaps through
     them, one straight round each (:func:`pocket_path`).  Robots with no way out found are
-    left out."""
+    left out; more than :data:`_POCKET_ROBOTS` in pockets, none is sought (``{}``)."""
     env, cl = problem.env, problem.clearance
     k = min(k, lat.n)
     tree = cKDTree(lat.points)
     _, j = tree.query(pos, k=k, distance_upper_bound=reach)
     j = np.asarray(j).reshape(len(pos), k)
     out: dict[int, list[np.ndarray]] = {}
+    tried: list[int] = []
     for r in range(len(pos)):
         cand = j[r][j[r] < lat.n]
         if time.perf_counter() > deadline:
             break
         if len(cand) and env.segments_clear(np.repeat(pos[[r]], len(cand), axis=0), lat.points[cand], cl).any():
             continue
+        if len(tried) >= _POCKET_ROBOTS:
+            return {}  # that many pockets: the grid does not suit the placement (each try ~0.05 s)
+        tried.append(r)
         way = pocket_path(problem, lat, tree, pos[r], reach)
         if way:
             out[r] = way
