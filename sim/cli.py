@@ -293,6 +293,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="csv, json: samples per second [Hz] (default 20)")
     e.add_argument("--height", type=_number_in(-1e6, 1e6, "a number of workspace units"), default=0.0,
                    help="poly: the constant z of every trajectory [workspace units] (default 0)")
+    e.add_argument("--origin", nargs=2, metavar=("X", "Y"), default=(0.0, 0.0),
+                   type=_number_in(-1e9, 1e9, "a number of workspace units"),
+                   help="added to every position: the world position of the workspace's lower-left corner, "
+                   "e.g. a ROS map's origin (default 0 0; plans are measured from that corner)")
     e.add_argument("-o", "--output", metavar="FILE_OR_DIR",
                    help="csv, json: the file (default standard output); poly: the folder "
                    "(default PLAN-poly beside the plan file)")

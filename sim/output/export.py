@@ -28,7 +28,8 @@ import json
 
 import numpy as np
 
-__all__ = ["MAX_SAMPLES", "POLY_HEADER", "cmd_export", "eval_piece", "poly_pieces", "sample_times", "samples", "to_csv",
+__all__ = ["MAX_SAMPLES", "POLY_HEADER", "cmd_export", "eval_piece", "poly_pieces", "sample_times", "samples", "shifted",
+           "to_csv",
            "to_json", "to_poly_csv"]
 
 MAX_SAMPLES = 20_000_000
@@ -36,6 +37,18 @@ MAX_SAMPLES = 20_000_000
 
 POLY_HEADER = "duration," + ",".join(f"{a}^{p}" for a in ("x", "y", "z", "yaw") for p in range(8))
 """The header row of a Crazyswarm polynomial trajectory CSV."""
+
+
+def shifted(plan, origin):
+    """The plan with ``origin`` ``(x, y)`` added to every waypoint (the same plan when it is 0 0):
+    trajectories in the frame of a map whose lower-left corner lies there (a ROS map's
+    ``origin``); durations, and so velocities, unchanged."""
+    from dataclasses import replace
+
+    o = np.asarray(origin, float).reshape(2)
+    if not o.any():
+        return plan
+    return replace(plan, waypoints=np.asarray(plan.waypoints) + o)
 
 
 def sample_times(makespan: float, rate: float) -> np.ndarray:
@@ -135,6 +148,7 @@ def cmd_export(args) -> int:
         check_out_file(args.output, "-o")
     plan, extra = read_plan_file(plan_path)
     note_ignored(plan_path, extra)
+    plan = shifted(plan, args.origin)
     if args.format == "poly":
         pieces = poly_pieces(plan, args.height)
         folder.mkdir(parents=True, exist_ok=True)

@@ -59,6 +59,28 @@ def test_csv_is_exact_at_its_samples_and_ends_at_the_makespan(plan_file, tmp_pat
         assert np.array_equal(got[:, 1:3], pos[:, i]) and np.array_equal(got[:, 3:5], vel[:, i])
 
 
+def test_origin_shifts_positions_only(plan_file, tmp_path):
+    """``--origin X Y`` (a ROS map's origin): every position moved by (X, Y), exactly as the
+    plan's own samples plus it; times and velocities unchanged; poly: the constant terms."""
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert _swarmform("export", plan_file, "--rate", "3", "-o", a).returncode == 0
+    r = _swarmform("export", plan_file, "--rate", "3", "--origin", "-10", "2.5", "-o", b)
+    assert r.returncode == 0, r.stderr
+    ra = np.array([[float(v) for v in row.values()] for row in csv.DictReader(a.open())])
+    rb = np.array([[float(v) for v in row.values()] for row in csv.DictReader(b.open())])
+    assert ra.shape == rb.shape
+    np.testing.assert_array_equal(rb[:, :2], ra[:, :2])
+    np.testing.assert_allclose(rb[:, 4:], ra[:, 4:], rtol=0, atol=1e-12)  # shifted ends round differently
+    np.testing.assert_allclose(rb[:, 2:4], ra[:, 2:4] + [-10.0, 2.5], rtol=0, atol=1e-12)
+    assert not np.allclose(rb[:, 2:4], ra[:, 2:4])  # control: the shift is there
+    r = _swarmform("export", plan_file, "--format", "poly", "--origin", "-10", "2.5", "-o", tmp_path / "poly")
+    assert r.returncode == 0, r.stderr
+    plan = _plan(plan_file)
+    first = next(csv.DictReader((tmp_path / "poly" / "robot000.csv").open()))
+    assert float(first["x^0"]) == plan.waypoints[0, 0, 0] - 10.0
+    assert float(first["y^0"]) == plan.waypoints[0, 0, 1] + 2.5
+
+
 def test_json_is_exact_at_its_samples(plan_file):
     r = _swarmform("export", plan_file, "--format", "json")
     assert r.returncode == 0, r.stderr
@@ -161,6 +183,9 @@ def test_bad_plan_file_is_one_line_exit_2(content, says, tmp_path):
     (["--rate", "nan"], "--rate"),
     (["--format", "xml"], "--format"),
     (["--height", "inf"], "--height"),
+    (["--origin", "nan", "0"], "--origin"),
+    (["--origin", "1"], "--origin"),
+    (["--origin", "1e10", "0"], "--origin"),
 ])
 def test_bad_options_are_one_line_exit_2(args, says, plan_file):
     r = _swarmform("export", plan_file, *args)
