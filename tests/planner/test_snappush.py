@@ -49,7 +49,8 @@ def test_crowded_snapping_succeeds_and_every_round_is_exact(tmp_path, seed, side
 
 
 # seeds 4 and 15: a robot starts in a pocket between desks whose only way out is a gap
-# the robot barely fits, off every grid line (seed 15: up 0.05, right 0.9, then a vertex)
+# the robot barely fits, off every grid line (seed 15: a short way up, 0.44 right along a
+# band 0.05 wide between two desks, then a vertex)
 @pytest.mark.parametrize("seed", [4, 15])
 def test_a_robot_in_a_pocket_snaps_through_corners(tmp_path, seed, monkeypatch):
     import time
