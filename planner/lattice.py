@@ -228,7 +228,10 @@ def snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float,
     (:func:`planner.snappush.push`), or failing that the robots still to move get
     new vertices whose straight moves pass no other robot where it stands, so
     that the next round moves some.  A try that fails is made again with the
-    robots whose destination lies in another's way held back a round.
+    robots whose destination lies in another's way held back a round.  When the
+    first assignment fails because a robot sees no vertex (a pocket between
+    obstacles), that robot first passes the corners of a way out
+    (:func:`planner.snappush.pocket_corners`), one round each.
     ``None`` when no such vertices exist or the deadline passes.
     """
     got = _snap(problem, lat, placement, deadline, max_rounds, False)

@@ -15,6 +15,11 @@ straight move would hit an obstacle).  Each of these single moves is one round,
 tested exactly against every other robot where it stands (the path's edges
 also keep the separation from the robots not yet on the lattice); a push is
 given up, nothing changed, at the first that fails.
+
+A robot that sees no vertex at all by a straight move (a pocket between desks)
+gets the corners of a way out instead (:func:`pocket_corners`): a breadth-first
+search over a fine grid around it, every edge and every pulled-taut leg tested
+exactly against the obstacles.
 """
 
 from __future__ import annotations
