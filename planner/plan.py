@@ -33,6 +33,7 @@ from .planfile import (
     PlanFileError,
     _integer,
     _json_int,
+    _number,
     _plan_from_dict,
 )
 from .profile import _S1_MAX, _S2_MAX, PROFILE, min_jerk, min_jerk_s, step_duration
@@ -235,6 +236,16 @@ class Plan:
 # plan files
 
 
+def _origin(value, source: str) -> tuple[float, float]:
+    """A plan file's ``origin``: ``[x, y]``, numbers in [-1e9, 1e9] (the world position of the
+    workspace's lower-left corner, which ``swarmform export`` adds)."""
+    from .inputfile import echo
+
+    if not isinstance(value, list) or len(value) != 2:
+        raise PlanFileError(source, "origin", f"must be a pair [x, y], got {echo(value)}")
+    return (_number(value[0], source, "origin[0]", -1e9, 1e9), _number(value[1], source, "origin[1]", -1e9, 1e9))
+
+
 #: Unknown top-level keys of a plan file named in the note that they were ignored.
 IGNORED_SHOWN = 8
 
@@ -290,4 +301,6 @@ def read_plan_file(path: str | Path) -> tuple["Plan", dict]:
         extra["seed"] = _integer(d["seed"], source, "seed", 0, 2**63 - 1)
     if "scenario" in d:
         extra["scenario"] = d["scenario"]
+    if "origin" in d:
+        extra["origin"] = _origin(d["origin"], source)
     return p, extra

@@ -26,7 +26,7 @@ __all__ = [
 MAX_PLAN_BYTES = 64 << 20
 """The largest plan file read [bytes] (64 MiB)."""
 PLAN_KEYS = frozenset({"scenario", "seed", "radius", "margin", "profile", "durations", "waypoints",
-                       "max_speed", "max_accel", "stats"})
+                       "max_speed", "max_accel", "stats", "origin"})
 """The top-level keys of a plan file (what :meth:`Plan.to_json` and ``swarmform plan`` write)."""
 MAX_STEPS = 100_000
 """The most steps a plan file may hold."""

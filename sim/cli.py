@@ -164,7 +164,10 @@ def _cmd_plan(args) -> int:
         return EXIT_FAIL
     _print_stats(stats, problem.margin, auto=params.auto)
     with atomic_path(out) as tmp:
-        tmp.write_text(result.to_json({"scenario": scenario.name, "seed": seed}), encoding="utf-8")
+        extra = {"scenario": scenario.name, "seed": seed}
+        if scenario.map_origin is not None:
+            extra["origin"] = list(scenario.map_origin)
+        tmp.write_text(result.to_json(extra), encoding="utf-8")
     print(f"wrote {out}")
     return EXIT_OK
 
@@ -293,10 +296,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="csv, json: samples per second [Hz] (default 20)")
     e.add_argument("--height", type=_number_in(-1e6, 1e6, "a number of workspace units"), default=0.0,
                    help="poly: the constant z of every trajectory [workspace units] (default 0)")
-    e.add_argument("--origin", nargs=2, metavar=("X", "Y"), default=(0.0, 0.0),
+    e.add_argument("--origin", nargs=2, metavar=("X", "Y"), default=None,
                    type=_number_in(-1e9, 1e9, "a number of workspace units"),
-                   help="added to every position: the world position of the workspace's lower-left corner, "
-                   "e.g. a ROS map's origin (default 0 0; plans are measured from that corner)")
+                   help="added to every position: the world position of the workspace's lower-left corner "
+                   "(default the plan file's origin, which swarmform plan records from a map's origin, else 0 0)")
     e.add_argument("-o", "--output", metavar="FILE_OR_DIR",
                    help="csv, json: the file (default standard output); poly: the folder "
                    "(default PLAN-poly beside the plan file)")

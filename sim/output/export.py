@@ -148,7 +148,7 @@ def cmd_export(args) -> int:
         check_out_file(args.output, "-o")
     plan, extra = read_plan_file(plan_path)
     note_ignored(plan_path, extra)
-    plan = shifted(plan, args.origin)
+    plan = shifted(plan, args.origin if args.origin is not None else extra.get("origin", (0.0, 0.0)))
     if args.format == "poly":
         pieces = poly_pieces(plan, args.height)
         folder.mkdir(parents=True, exist_ok=True)

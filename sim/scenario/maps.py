@@ -83,6 +83,7 @@ class Grid:
 
     blocked: np.ndarray  # (rows, cols) bool
     cell: float | None = None
+    origin: tuple[float, float] | None = None  # a ROS map's lower-left corner in its frame (yaw ignored, as map_server)
 
     @property
     def rows(self) -> int:
@@ -244,7 +245,8 @@ def _read_ros(path: Path) -> Grid:
     origin = doc["origin"]
     if not isinstance(origin, list) or len(origin) not in (2, 3):
         raise MapError(f"{name}: origin must be [x, y, yaw]")
-    for v in origin:
+    ox, oy = (_ros_number(v, f"{name}: origin", -1e9, 1e9) for v in origin[:2])
+    for v in origin[2:]:
         _ros_number(v, f"{name}: origin", -1e9, 1e9)
     occ = _ros_number(doc["occupied_thresh"], f"{name}: occupied_thresh", 0, 1)
     free = _ros_number(doc["free_thresh"], f"{name}: free_thresh", 0, 1)
@@ -261,7 +263,7 @@ def _read_ros(path: Path) -> Grid:
         raise MapError(f"{name}: image {_name(img)} must be a PGM or PNG file")
     grey = _read_grey(img, f"{name}: image {_name(img)}", average=True)
     p = grey / 255.0 if negate else (255.0 - grey) / 255.0
-    return Grid(~(p < free) | (p > occ), cell=res)  # unknown (between the thresholds) is blocked
+    return Grid(~(p < free) | (p > occ), cell=res, origin=(ox, oy))  # unknown (between the thresholds) is blocked
 
 
 def _ros_number(value, where: str, lo: float, hi: float) -> float:

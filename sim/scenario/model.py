@@ -130,6 +130,8 @@ class Scenario:
     render: RenderParams
     paper: PaperRef | None = None
     targets: tuple[FormationSpec, ...] = ()
+    #: the world position of a map's lower-left corner (``map.origin`` or a ROS map's own), else None
+    map_origin: tuple[float, float] | None = None
 
     @property
     def legs(self) -> tuple[FormationSpec, ...]:

@@ -117,13 +117,16 @@ class _MapInfo:
     width: float
     height: float
     obstacles: tuple[Polygon, ...]
+    origin: tuple[float, float] | None = None  # the world position of the lower-left corner
 
 
 def _read_map(r: _Reader, value, base: Path) -> _MapInfo:
     """``map: {file, cell, origin, threshold}``: the workspace and the obstacles of an occupancy grid.
 
-    ``origin`` (the world position of the map's lower-left corner, as in ROS)
-    is checked and not used: scenario positions are measured from that corner.
+    ``origin`` (the world position of the map's lower-left corner, as in ROS;
+    default a ROS map's own ``origin``, scaled when ``cell`` differs from its
+    ``resolution``) does not move anything: scenario positions are measured from
+    that corner; plan files record it for ``swarmform export``.
     """
     from .maps import MapError, cover, read_grid, resolve
 
@@ -135,8 +138,7 @@ def _read_map(r: _Reader, value, base: Path) -> _MapInfo:
         r.fail("map.file", f"must be a path to a map file, got {_kind(f)}")
     path = resolve(f, base)
     threshold = None if m.get("threshold") is None else r.number(m["threshold"], "map.threshold", ge=1, le=255)
-    if "origin" in m:
-        r.pair(m["origin"], "map.origin", ge=-1e9, le=1e9)
+    origin = r.pair(m["origin"], "map.origin", ge=-1e9, le=1e9) if "origin" in m else None
     try:
         grid = read_grid(path, threshold)
         cell = grid.cell
@@ -154,4 +156,7 @@ def _read_map(r: _Reader, value, base: Path) -> _MapInfo:
             r.fail("map.file", f"{echo_path(path.name, 60)}: {exc.reason}")
     except MapError as exc:
         r.fail(f"map.{exc.key}", exc.reason)
-    return _MapInfo(path, grid, cell, width, height, pieces)
+    if origin is None and grid.origin is not None:
+        scale = cell / grid.cell if grid.cell else 1.0
+        origin = (grid.origin[0] * scale, grid.origin[1] * scale)
+    return _MapInfo(path, grid, cell, width, height, pieces, origin)

@@ -153,6 +153,7 @@ def _read_scenario(path: str | Path, overrides: dict | None) -> Scenario:
         render=_read_render(r, doc.get("render")),
         paper=_read_paper(r, doc.get("paper")),
         targets=targets,
+        map_origin=None if grid_map is None else grid_map.origin,
     )
 
 

@@ -69,6 +69,7 @@ CORPUS = {
     "count-hex.yaml": ("robots.count", "got string '0x1F'"),
     "max-speed-underscore.yaml": ("robots.max_speed", "got string '1_000' (numbers are written in decimal only"),
     "plan-duplicate-key.json": ("radius", "is given twice"),
+    "plan-origin-string.json": ("origin[0]", "got string '-12.5'"),
     "text-no-skeleton.yaml": ("target.formation.text", "'.' traces to a single point, no line to place robots"),
     "text-no-skeleton-count.yaml": ("target.formation.text", "'.' traces to a single point"),
     "text-number.yaml": ("target.formation.text", 'must be a string, got number 12345 (write it in quotes'),

@@ -81,6 +81,22 @@ def test_origin_shifts_positions_only(plan_file, tmp_path):
     assert float(first["y^0"]) == plan.waypoints[0, 0, 1] + 2.5
 
 
+def test_the_plan_files_origin_is_the_default(plan_file, tmp_path):
+    """A plan file's ``origin`` (``swarmform plan`` records a map's) shifts the export;
+    ``--origin`` overrides it."""
+    d = json.loads(plan_file.read_text())
+    d["origin"] = [-12.5, -7.5]
+    shifted_plan = tmp_path / "o.json"
+    shifted_plan.write_text(json.dumps(d))
+    outs = {}
+    for key, args in (("none", [plan_file]), ("file", [shifted_plan]), ("zero", [shifted_plan, "--origin", "0", "0"])):
+        r = _swarmform("export", *args, "--rate", "2", "-o", tmp_path / f"{key}.csv")
+        assert r.returncode == 0, r.stderr
+        outs[key] = np.array([[float(v) for v in row.values()] for row in csv.DictReader((tmp_path / f"{key}.csv").open())])
+    np.testing.assert_array_equal(outs["zero"], outs["none"])
+    np.testing.assert_allclose(outs["file"][:, 2:4], outs["none"][:, 2:4] + [-12.5, -7.5], rtol=0, atol=1e-12)
+
+
 def test_json_is_exact_at_its_samples(plan_file):
     r = _swarmform("export", plan_file, "--format", "json")
     assert r.returncode == 0, r.stderr

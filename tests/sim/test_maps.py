@@ -214,6 +214,31 @@ def test_ros_cell_defaults_to_resolution(tmp_path):
     assert piece.vertices[:, 1].min() == 2.0 and piece.vertices[:, 1].max() == 3.0  # rows 2-3 of 8, y flipped
 
 
+@pytest.mark.parametrize("extra, cell, origin", [
+    ("", "", (-3.0, 1.5)),                       # the ROS map's own origin
+    ("", ", cell: 1.0", (-6.0, 3.0)),            # in workspace units: scaled by cell / resolution
+    (", origin: [10, 20]", "", (10.0, 20.0)),    # map.origin wins
+])
+def test_map_origin_is_kept_for_the_plan_file(tmp_path, extra, cell, origin):
+    values = np.full((8, 12), 254)
+    _pgm(tmp_path / "m.pgm", values)
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.5\norigin: [-3, 1.5, 0.3]\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\nnegate: 0\n")
+    path = tmp_path / "s.yaml"
+    path.write_text(f"map: {{file: m.yaml{cell}{extra}}}\nrobots: {{radius: 0.2, margin: 0.05, count: 2}}\n"
+                    "start: {points: [[0.5, 0.5], [5.5, 0.5]]}\ntarget: {points: [[0.5, 3.5], [5.5, 3.5]]}\n")
+    s = read_scenario(path)
+    assert s.map_origin == origin
+
+
+def test_movingai_map_has_no_origin(tmp_path):
+    (tmp_path / "t.map").write_text(TINY)
+    path = tmp_path / "s.yaml"
+    path.write_text("map: {file: t.map, cell: 2.4}\nrobots: {count: 1}\n"
+                    "start: {points: [[3.6, 8.4]]}\ntarget: {points: [[6.0, 8.4]]}\n")
+    assert read_scenario(path).map_origin is None
+
+
 def test_png_threshold(tmp_path):
     rgb = np.full((2, 3, 3), 255, np.uint8)
     rgb[0, 0] = (0, 0, 0)
