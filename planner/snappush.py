@@ -39,6 +39,8 @@ __all__ = ["push"]
 _CANDIDATES = 48  # nearest vertices tried as the fenced robot's entry
 _MAX_PATH = 40  # lattice edges a push may shift robots along
 _ENTRIES = 8  # entry vertices a push tries
+_POCKET_NODES = 161  # nodes a side of the fine grid a robot in a pocket searches for a way out
+_POCKET_ROBOTS = 64  # robots in pockets sought a way out at most (more: none is)
 
 
 def _single_clear(problem: Problem, pos: np.ndarray, r: int, b: np.ndarray) -> bool:
@@ -171,12 +173,6 @@ def _shift(problem: Problem, lat: Lattice, pos: np.ndarray, vert: np.ndarray, oc
     return pos, vert, rounds
 
 
-
-
-_POCKET_NODES = 161  # nodes a side of the fine grid a robot in a pocket searches for a way out
-_POCKET_ROBOTS = 64  # robots in pockets sought a way out at most (more: none is)
-
-
 def pocket_corners(problem: Problem, lat: Lattice, pos: np.ndarray, reach: float, deadline: float,
                    k: int = 144) -> dict[int, list[np.ndarray]]:
     """Corners by which each robot that no straight move clear of the obstacles brings onto
@@ -190,16 +186,16 @@ def pocket_corners(problem: Problem, lat: Lattice, pos: np.ndarray, reach: float
     _, j = tree.query(pos, k=k, distance_upper_bound=reach)
     j = np.asarray(j).reshape(len(pos), k)
     out: dict[int, list[np.ndarray]] = {}
-    tried: list[int] = []
+    tried = 0
     for r in range(len(pos)):
         cand = j[r][j[r] < lat.n]
         if time.perf_counter() > deadline:
             break
         if len(cand) and env.segments_clear(np.repeat(pos[[r]], len(cand), axis=0), lat.points[cand], cl).any():
             continue
-        if len(tried) >= _POCKET_ROBOTS:
+        if tried >= _POCKET_ROBOTS:
             return {}  # that many pockets: the grid does not suit the placement (each try ~0.05 s)
-        tried.append(r)
+        tried += 1
         way = pocket_path(problem, lat, tree, pos[r], reach)
         if way:
             out[r] = way
@@ -213,8 +209,6 @@ def pocket_path(problem: Problem, lat: Lattice, tree: cKDTree, a: np.ndarray, re
     ``min(clearance, lattice spacing) / 8`` finds gaps at least that wide), the
     nearest reached node that sees one of its four nearest vertices kept, and the
     path pulled taut: from each corner the farthest later node it sees."""
-    from collections import deque as _deque
-
     env, cl = problem.env, problem.clearance
     h = min(cl, lat.spacing) / 8
     half = min(_POCKET_NODES // 2, int(np.ceil(reach / h)))
@@ -234,7 +228,7 @@ def pocket_path(problem: Problem, lat: Lattice, tree: cKDTree, a: np.ndarray, re
     parent = np.full(side * side, -1)
     parent[centre] = centre
     order = [centre]
-    queue = _deque([centre])
+    queue = deque([centre])
     while queue:
         u = queue.popleft()
         for w, ok in ((u + side, edge_ok[0, u]), (u - side, u >= side and edge_ok[0, u - side]),

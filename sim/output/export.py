@@ -29,8 +29,7 @@ import json
 import numpy as np
 
 __all__ = ["MAX_SAMPLES", "POLY_HEADER", "cmd_export", "eval_piece", "poly_pieces", "sample_times", "samples", "shifted",
-           "to_csv",
-           "to_json", "to_poly_csv"]
+           "to_csv", "to_json", "to_poly_csv"]
 
 MAX_SAMPLES = 20_000_000
 """The most (robot, time) samples one export writes."""
