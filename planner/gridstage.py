@@ -189,18 +189,13 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
         if best is None or span < best[2]:
             best = (w, len(raw) - 1, span)
     if best is not None and best[1] > 1 and problem.m >= FLOW_MIN_ROBOTS:
-        left = deadline - time.perf_counter()
-        budget = min(FLOW_BUDGET_S, left / 3, 0.5 + 1e-4 * problem.m**2)
-        raw = grid_waypoints(problem, deadline, grid, flow=(best[1], budget))
-        if raw is not None:
-            w = merge_steps(problem, _drop_idle(raw), deadline)
-            span = _makespan(problem, w)
-            if span < best[2]:
-                best = (w, len(raw) - 1, span)
-        if not isinstance(grid, Lines):  # steps of two cells (planner.superflow), uniform grids only
+        # the fewest steps (planner.gridflow), then steps of two cells (planner.superflow,
+        # uniform grids only), each kept when its plan is shorter
+        for kind in ("flow", "twos") if not isinstance(grid, Lines) else ("flow",):
             left = deadline - time.perf_counter()
             budget = min(FLOW_BUDGET_S, left / 3, 0.5 + 1e-4 * problem.m**2)
-            raw = grid_waypoints(problem, deadline, grid, twos=(best[2], budget))
+            arg = {"flow": (best[1], budget)} if kind == "flow" else {"twos": (best[2], budget)}
+            raw = grid_waypoints(problem, deadline, grid, **arg)
             if raw is not None:
                 w = merge_steps(problem, _drop_idle(raw), deadline)
                 span = _makespan(problem, w)
