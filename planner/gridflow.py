@@ -243,12 +243,14 @@ def flow_route(lat: Lattice, sv: np.ndarray, gv: np.ndarray, deadline: float, tu
     if lo is None:
         return None
     best = None
+    failed = 0.0  # how long the last program without a routing took (HiGHS overruns short limits)
     while lo <= hi:
         left = end - time.perf_counter()
-        if left <= 0.05:
-            break
+        if left <= 0.05 or left < failed:
+            break  # one more such program would not finish within the budget
         mid = (lo + hi) // 2
-        got = _solve(lat, sv, gv, mid, turns, min(left, max(0.5, budget / 4)))
+        began = time.perf_counter()
+        got = _solve(lat, sv, gv, mid, turns, min(left, max(0.1, budget / 4)))
         if isinstance(got, np.ndarray):
             best = got
             hi = mid - 1
@@ -256,6 +258,7 @@ def flow_route(lat: Lattice, sv: np.ndarray, gv: np.ndarray, deadline: float, tu
             hi = mid - 1  # a shorter horizon is a smaller program
         else:
             lo = mid + 1
+            failed = time.perf_counter() - began
     return None if best is None else list(_park(best)[1:])
 
 

@@ -40,7 +40,7 @@ lattice stage's lattice (:mod:`planner.lattice`) but the natural graph.
    is small enough, the routing with the fewest steps under the same rules
    is then sought as an integer program (:func:`planner.gridflow.flow_route`)
    below TSWAP's count (from :data:`FLOW_MIN_ROBOTS` robots on), within :data:`FLOW_BUDGET_S`, a third of the time
-   left and ``0.5 + 1e-4 m^2`` seconds (1.5 s at 100 robots, 16.5 s at 400: TSWAP is
+   left and :func:`route_budget` (1.2 s at 100 robots, 16.5 s at 400: TSWAP is
    close to the shortest routing when few vertices are taken), and kept when its plan
    is shorter.
 6. **Steps of two cells**: every step goes from rest to rest, so a robot that
@@ -158,6 +158,20 @@ GRID_BUDGET_S = 1.5
 FLOW_BUDGET_S = 20.0
 #: Fewer robots than this leave TSWAP's routing as it is (within a step or two of the shortest).
 FLOW_MIN_ROBOTS = 40
+#: Nor do robots on fewer than this share of the grid's vertices: on the benchmark maps at
+#: 12-15 % taken no search found a shorter routing in its budget (the integer programs,
+#: long horizons over a sparse grid, ran out of time), from 18 % on they did.
+FLOW_MIN_OCCUPANCY = 0.15
+
+
+def route_budget(m: int) -> float:
+    """Seconds each of the routing searches (fewer steps, steps of two cells) may take
+    for ``m`` robots: ``1e-4 m^2 + 0.5 min(1, (m / 150)^2)``, 1.2 s at 100 robots, 4.5 s
+    at 200, 16.5 s at 400.  Below about 150 robots TSWAP's routing is within a step of
+    the relaxed bound and the integer programs, with long horizons over a sparse grid,
+    mostly run out of time (HiGHS overruns a short limit by up to a second in presolve),
+    so the budget shrinks there to keep 100 robots within 3 s."""
+    return 1e-4 * m**2 + 0.5 * min(1.0, (m / 150) ** 2)
 
 
 def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
@@ -188,12 +202,13 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
         span = _makespan(problem, w)
         if best is None or span < best[2]:
             best = (w, len(raw) - 1, span)
-    if best is not None and best[1] > 1 and problem.m >= FLOW_MIN_ROBOTS:
+    if (best is not None and best[1] > 1 and problem.m >= FLOW_MIN_ROBOTS
+            and problem.m >= FLOW_MIN_OCCUPANCY * _graph(problem, grid)[0].n):  # built by the tries
         # the fewest steps (planner.gridflow), then steps of two cells (planner.superflow,
         # uniform grids only), each kept when its plan is shorter
         for kind in ("flow", "twos") if not isinstance(grid, Lines) else ("flow",):
             left = deadline - time.perf_counter()
-            budget = min(FLOW_BUDGET_S, left / 3, 0.5 + 1e-4 * problem.m**2)
+            budget = min(FLOW_BUDGET_S, left / 3, route_budget(problem.m))
             arg = {"flow": (best[1], budget)} if kind == "flow" else {"twos": (best[2], budget)}
             raw = grid_waypoints(problem, deadline, grid, **arg)
             if raw is not None:
@@ -218,15 +233,8 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
     if grid is None:
         return None
     lines = grid if isinstance(grid, Lines) else None
-    if lines is not None:
-        key: tuple = ("_grid_graph", id(lines))
-        c, offset = lines.reach, None
-    else:
-        offset, c = grid
-        key = ("_grid_graph", tuple(np.asarray(offset, float)), float(c))
-    if key not in problem.__dict__:  # every try and the shortest-routing search use the same graph
-        problem.__dict__[key] = build_grid(problem, lines) if lines is not None else build_grid(problem, offset, c)
-    built = problem.__dict__[key]
+    c, offset = (lines.reach, None) if lines is not None else (grid[1], grid[0])
+    built = _graph(problem, grid)
     if built is None or built[0].n == 0:
         return None
     lat, _, vid = built
@@ -297,6 +305,18 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
     back = [np.asarray(problem.target, float), *leave][::-1]  # target j's robot in row j
     raw += [cfg[inv] for cfg in back[1:]]
     return raw
+
+
+def _graph(problem: Problem, grid):
+    """The grid graph of ``grid`` (:func:`build_grid`), built once per problem: every
+    try and every routing search use the same one."""
+    if isinstance(grid, Lines):
+        key: tuple = ("_grid_graph", id(grid))
+    else:
+        key = ("_grid_graph", tuple(np.asarray(grid[0], float)), float(grid[1]))
+    if key not in problem.__dict__:
+        problem.__dict__[key] = build_grid(problem, grid) if isinstance(grid, Lines) else build_grid(problem, *grid)
+    return problem.__dict__[key]
 
 
 def _two_cell_steps(problem: Problem, built, sv, gv, c: float, twos: tuple[float, float], deadline: float):

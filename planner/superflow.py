@@ -219,13 +219,15 @@ def super_route(lat: Lattice, ij: np.ndarray, vid: np.ndarray, sv: np.ndarray, g
     cands = sorted((n1 * t1 + n2 * t2, n1 + n2, n1, n2) for n2 in range(1, top + 1) for n1 in range(top + 1)
                    if n1 + 2 * n2 >= reach and n1 * t1 + n2 * t2 < beat * (1 - 1e-9))
     lo, hi, best = 0, len(cands) - 1, None
+    failed = 0.0  # how long the last program without a routing took (HiGHS overruns short limits)
     while lo <= hi:
         left = end - time.perf_counter()
-        if left <= 0.05:
-            break
+        if left <= 0.05 or left < failed:
+            break  # one more such program would not finish within the budget
         mid = (lo + hi) // 2
         kinds = kinds_of(cands[mid][2], cands[mid][3])
-        got = _solve(lat, ij, vid, sv, gv, kinds, sep_c, min(left, max(0.5, budget / 4)))
+        began = time.perf_counter()
+        got = _solve(lat, ij, vid, sv, gv, kinds, sep_c, min(left, max(0.1, budget / 4)))
         if isinstance(got, np.ndarray):
             best = (kinds, got)
             hi = mid - 1
@@ -233,6 +235,7 @@ def super_route(lat: Lattice, ij: np.ndarray, vid: np.ndarray, sv: np.ndarray, g
             hi = mid - 1
         else:
             lo = mid + 1
+            failed = time.perf_counter() - began
     if best is None:
         return None
     kinds, where = best
