@@ -17,14 +17,17 @@ the robots are never far from some 50 of them.
    every robot heads for its site of the minimum sum-of-squares matching
    (computed again every step: the problem is unlabeled), at most ``h``
    per step; pairs closer than ``separation + eps`` are then pushed apart
-   along their line, symmetrically, a few rounds, and positions clamped to
-   the box (convex: a clamped step stays clear of the walls).  The step
+   along their line, symmetrically, a few rounds (``eps`` at most the
+   sites' spacing over the separation, or robots could never settle on
+   them), and positions clamped to the box (convex: a clamped step stays
+   clear of the walls).  The step
    ``x -> x'`` is checked exactly (closest approach of every pair that can
    meet, :func:`planner.geometry.closest_approach`); the robots of a pair
    that comes closer than the separation stay where they are, and the
    check is repeated until it passes (all staying is always clear).  A
    robot within ``1e-3`` of its site lands on it.  Where the matched
-   squared distance stops falling, the headings get random noise.
+   squared distance stops falling, the headings of the robots not yet on
+   their sites get random noise.
 3. **Route** (:func:`dense_plan`): the target placement is flowed onto all
    the sites of a lattice, giving ``C``; the start placement is flowed onto
    exactly ``C``; the plan is the first flow followed by the second
@@ -131,6 +134,12 @@ def flow(problem: Problem, x: np.ndarray, sites: np.ndarray, deadline: float,
     clear), or ``None`` past :data:`FLOW_STEPS` steps or the deadline."""
     lo = np.full(2, problem.clearance)
     hi = np.array([problem.width, problem.height]) - problem.clearance
+    if len(sites) > 1:
+        # pairs pushed apart beyond the sites' own spacing could never settle on them (a
+        # square grid of 18 x 18 in a box of side 38.4 is 2.13 apart, for a separation of 2.1:
+        # 200 robots there found no plan in 60 s)
+        spacing = float(cKDTree(sites).query(sites, k=2)[0][:, 1].min())
+        eps = min(eps, max(0.0, spacing - problem.separation))
     x = np.array(x, float)
     out = [x.copy()]
     best, since = np.inf, 0
@@ -145,8 +154,9 @@ def flow(problem: Problem, x: np.ndarray, sites: np.ndarray, deadline: float,
             return out
         cost = float((left**2).sum())
         best, since = (cost, 0) if cost < best - 1e-9 else (best, since + 1)
-        if since >= _PATIENCE:  # stalled: shake the headings
-            v = v + rng.normal(0.0, h * min(1.0, 0.2 * (since - _PATIENCE + 1)), v.shape)
+        if since >= _PATIENCE:  # stalled: shake the headings of the robots not yet on their sites
+            off = left > _SNAP
+            v[off] += rng.normal(0.0, h * min(1.0, 0.2 * (since - _PATIENCE + 1)), (int(off.sum()), 2))
             left = np.linalg.norm(v, axis=1)
         nxt = _push(problem, x + v * np.minimum(1.0, h / np.maximum(left, 1e-300))[:, None], lo, hi, eps)
         near = np.linalg.norm(nxt - goal, axis=1) < _SNAP

@@ -72,3 +72,23 @@ def test_gives_up_fast():
     assert dense_plan(walled, 10.0, np.random.default_rng(0)) is None  # obstacles: not this stage's
     sites = packing_sites(problem)[0]
     assert flow(problem, problem.start, sites, time.perf_counter() - 1.0, np.random.default_rng(0)) is None
+
+
+def test_a_flow_settles_on_sites_closer_than_separation_plus_the_push():
+    """200 robots scattered over an empty box of side 38.4 (43 % covered): the square grid
+    of 18 x 18 sites is 2.13 apart, under the separation 2.1 plus the push's 0.1, so a push
+    to 2.2 kept every robot off its site (no plan in 60 s)."""
+    from planner.geometry import Environment
+    from planner.scatter import scatter
+
+    rng = np.random.default_rng(0)
+    pts = scatter(Environment.build(38.4, 38.4, ()), 200, 2.1, 1.1, rng)
+    problem = Problem(38.4, 38.4, (), 1.0, 0.1, pts, pts)
+    sites = packing_sites(problem)[0]
+    assert len(sites) == 324 and cKDTree(sites).query(sites, 2)[0][:, 1].min() < problem.separation + 0.1
+    way = flow(problem, pts, sites, time.perf_counter() + 30, rng, 0.15, 0.1)
+    assert way is not None
+    end = way[-1]
+    assert cKDTree(sites).query(end)[0].max() == 0.0  # every robot on a site
+    for a, b in zip(way, way[1:]):
+        assert len(step_ok(problem, a, b)) == 0
