@@ -35,7 +35,7 @@ import numpy as np
 
 from .grid import Lattice
 
-__all__ = ["FLOW_MAX_VARIABLES", "flow_route", "grid_distances", "relaxed_horizon"]
+__all__ = ["FLOW_MAX_VARIABLES", "flow_route", "flow_rows", "grid_distances", "relaxed_horizon"]
 
 #: Largest integer program tried (variables); above it the grid stage keeps TSWAP (HiGHS
 #: overran a 0.5 s limit by 6 s at 68,000).
@@ -88,6 +88,38 @@ def _flow_value(lat: Lattice, sv, gv, horizon: int) -> int:
     return int(maximum_flow(g, 0, 1).flow_value)
 
 
+def flow_rows(n: int, t_: np.ndarray, v_: np.ndarray, h_: np.ndarray, steps: int, sv, gv):
+    """``(rows, cols, vals, lo, hi, count)`` of the rows every time-expanded routing
+    program shares (this module's and :mod:`planner.superflow`'s): the arc ``i`` leaves
+    vertex ``v_[i]`` at step ``t_[i]`` for ``h_[i]``; flow is conserved, every robot
+    leaves its start and ends on a target, and at most one robot is on a vertex between
+    steps."""
+    rows, cols, vals, lo, hi = [], [], [], [], []
+    r = 0
+    start, goal = np.zeros(n), np.zeros(n)
+    start[sv], goal[gv] = 1.0, 1.0
+    # out(t, v) - in(t - 1 -> v) = [t == 0 and v a start]; in(last -> v) = [v a target]
+    for t in range(steps + 1):
+        rid = r + np.arange(n)
+        for sel, sign, at in ((t_ == t, 1.0, v_), (t_ == t - 1, -1.0, h_)):
+            rows.append(rid[at[sel]])
+            cols.append(np.nonzero(sel)[0])
+            vals.append(np.full(int(sel.sum()), sign))
+        b = start if t == 0 else (-goal if t == steps else np.zeros(n))
+        lo.append(b)
+        hi.append(b)
+        r += n
+    # at most one robot on a vertex: out(t, v) <= 1 (t >= 1; t = 0 is fixed above)
+    sel = t_ >= 1
+    rows.append(r + (t_[sel] - 1) * n + v_[sel])
+    cols.append(np.nonzero(sel)[0])
+    vals.append(np.ones(int(sel.sum())))
+    lo.append(np.full((steps - 1) * n, -np.inf))
+    hi.append(np.ones((steps - 1) * n))
+    r += (steps - 1) * n
+    return rows, cols, vals, lo, hi, r
+
+
 def _program(lat: Lattice, sv, gv, horizon: int, turns: bool):
     """Arrays of the integer program of ``horizon`` steps, or ``None`` when too big."""
     from scipy.sparse import coo_matrix
@@ -114,37 +146,7 @@ def _program(lat: Lattice, sv, gv, horizon: int, turns: bool):
     h_ = head_of[v_, k_]
     index = np.full((horizon, n, 5), -1)
     index[t_, v_, k_] = np.arange(nvar)
-    rows, cols, vals, lo, hi = [], [], [], [], []
-    r = 0
-    s_mask = np.zeros(n, bool)
-    s_mask[sv] = True
-    g_mask = np.zeros(n, bool)
-    g_mask[gv] = True
-    # out(t, v) - in(t - 1 -> v) = [t == 0 and v a start]; in(horizon - 1 -> v) = [v a target]
-    for t in range(horizon + 1):
-        rid = r + np.arange(n)
-        if t < horizon:
-            sel = t_ == t
-            rows.append(rid[v_[sel]])
-            cols.append(np.nonzero(sel)[0])
-            vals.append(np.ones(int(sel.sum())))
-        if t > 0:
-            sel = t_ == t - 1
-            rows.append(rid[h_[sel]])
-            cols.append(np.nonzero(sel)[0])
-            vals.append(-np.ones(int(sel.sum())))
-        b = s_mask.astype(float) if t == 0 else (-g_mask.astype(float) if t == horizon else np.zeros(n))
-        lo.append(b)
-        hi.append(b)
-        r += n
-    # at most one robot on a vertex: out(t, v) <= 1 (t >= 1; t = 0 is fixed above)
-    sel = (t_ >= 1)
-    rows.append(r + (t_[sel] - 1) * n + v_[sel])
-    cols.append(np.nonzero(sel)[0])
-    vals.append(np.ones(int(sel.sum())))
-    lo.append(np.full((horizon - 1) * n, -np.inf))
-    hi.append(np.ones((horizon - 1) * n))
-    r += (horizon - 1) * n
+    rows, cols, vals, lo, hi, r = flow_rows(n, t_, v_, h_, horizon, sv, gv)
     # no swap: x[t, u -> w] + x[t, w -> u] <= 1, and (grids finer than sqrt(2) separations)
     # no following with a turn: x[t, w -> v] + x[t, v -> both perpendicular slots] <= 1
     groups = []

@@ -44,7 +44,7 @@ from functools import lru_cache
 import numpy as np
 
 from .grid import Lattice
-from .gridflow import FLOW_MAX_VARIABLES, grid_distances, relaxed_horizon
+from .gridflow import FLOW_MAX_VARIABLES, flow_rows, grid_distances, relaxed_horizon
 
 __all__ = ["MOVES", "conflict_offsets", "kinds_of", "super_route"]
 
@@ -119,30 +119,7 @@ def _program(lat: Lattice, ij: np.ndarray, vid: np.ndarray, sv, gv, kinds: list[
     h_ = head[v_, k_]
     index = np.full((steps, n, len(MOVES)), -1)
     index[t_, v_, k_] = np.arange(nvar)
-    rows, cols, lo, hi = [], [], [], []
-    vals: list[np.ndarray] = []
-    r = 0
-    start, goal = np.zeros(n), np.zeros(n)
-    start[sv], goal[gv] = 1.0, 1.0
-    # out(t, v) - in(t - 1 -> v) = [t == 0 and v a start]; in(last -> v) = [v a target]
-    for t in range(steps + 1):
-        rid = r + np.arange(n)
-        for sel, sign, at in ((t_ == t, 1.0, v_), (t_ == t - 1, -1.0, h_)):
-            rows.append(rid[at[sel]])
-            cols.append(np.nonzero(sel)[0])
-            vals.append(np.full(int(sel.sum()), sign))
-        b = start if t == 0 else (-goal if t == steps else np.zeros(n))
-        lo.append(b)
-        hi.append(b)
-        r += n
-    # at most one robot on a vertex between steps
-    sel = t_ >= 1
-    rows.append(r + (t_[sel] - 1) * n + v_[sel])
-    cols.append(np.nonzero(sel)[0])
-    vals.append(np.ones(int(sel.sum())))
-    lo.append(np.full((steps - 1) * n, -np.inf))
-    hi.append(np.ones((steps - 1) * n))
-    r += (steps - 1) * n
+    rows, cols, vals, lo, hi, r = flow_rows(n, t_, v_, h_, steps, sv, gv)
     # pairs of moves that come too close (module docstring)
     nx, ny = vid.shape
     pa, pb = [], []
