@@ -23,6 +23,7 @@ __all__ = []
 
 _CUT_MIN_ROBOTS = 10  # fewer robots queue briefly: the bound adds little and would slow small plans by a quarter
 _GEO_MIN_S = 0.1  # the least time left for the obstacle-respecting bound to start [s]
+_GEO_BUDGET_S = 0.5  # its least budget [s] (it takes 0.2 to 0.6 s on den312d, room-64-64-8, lak303d)
 #: Above this many obstacles the geo and cut bounds are not tried within the planner's budget:
 #: on the third-party maps measured (docs/benchmarks.md), each of the three maps over it
 #: (2282 to 2973 rectangles) ran out of it at 100, 200 and 400 robots, after 1 to 4 s.
@@ -77,7 +78,7 @@ class _Direct:
 
 def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> None:
     """The obstacle-respecting makespan bound (:mod:`planner.geobound`) into the stats,
-    within at most a quarter of the time used so far (at least 0.2 s) and the time
+    within at most a quarter of the time used so far (at least :data:`_GEO_BUDGET_S`) and the time
     limit; otherwise NaN and ``stats.extra["geo_lower_bound"]`` says why (also when
     less than :data:`_GEO_MIN_S` of the limit is left: its setup alone takes that)."""
     now = time.perf_counter()
@@ -91,7 +92,7 @@ def _geo_bound(problem: Problem, stats: PlanStats, t0: float, limit: float) -> N
         return
     try:
         stats.makespan_lower_bound_geo_s = geo_lower_bound(
-            problem, deadline=min(limit, now + max(0.2, 0.25 * (now - t0))))
+            problem, deadline=min(limit, now + max(_GEO_BUDGET_S, 0.25 * (now - t0))))
     except TimeoutError:
         stats.extra["geo_lower_bound"] = "not computed: out of its time budget"
     except Exception as exc:  # a statistic only: never worth losing a plan over
