@@ -114,3 +114,22 @@ def test_grid_plan_keeps_the_shorter_routing_and_the_deadline():
     lat, sv, gv = _graph(p)
     assert flow_route(lat, sv, gv, time.perf_counter() - 1, below=len(raw)) is None
     assert time.perf_counter() - t < 1.0
+
+
+@pytest.mark.parametrize(("m", "searched"), [(50, False), (200, True)])
+def test_the_routing_searches_run_only_on_a_crowded_grid(monkeypatch, m, searched):
+    """room-32-32-4 has 682 free cells: 50 robots take 7 % (below FLOW_MIN_OCCUPANCY, TSWAP's
+    routing is kept as it is), 200 take 29 % (both searches run)."""
+    import planner.gridflow
+    import planner.superflow
+    from bench.maps import map_problem
+    from planner.gridstage import FLOW_MIN_OCCUPANCY, route_budget
+
+    calls = []
+    monkeypatch.setattr(planner.gridflow, "flow_route", lambda *a, **k: calls.append("flow"))
+    monkeypatch.setattr(planner.superflow, "super_route", lambda *a, **k: calls.append("twos"))
+    problem = map_problem("room-32-32-4", m, 0)
+    assert (m >= FLOW_MIN_OCCUPANCY * 682) == searched
+    assert grid_plan(problem, time.perf_counter() + 30, rng=np.random.default_rng(0)) is not None
+    assert calls == (["flow", "twos"] if searched else [])
+    assert route_budget(100) == pytest.approx(1.0 + 0.5 * (100 / 150) ** 2) and route_budget(400) == pytest.approx(16.5)
