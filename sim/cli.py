@@ -132,6 +132,9 @@ def _params_with_time_limit(scenario, time_limit):
     return scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
 
 
+_SET_HELP = "set a scenario field (dotted path, YAML scalar), e.g. --set robots.margin=0.2; repeatable"
+
+
 def _cmd_plan(args) -> int:
 
     from planner import NoPlanFound
@@ -140,10 +143,12 @@ def _cmd_plan(args) -> int:
     from .output.files import check_out_file
     from .output.media import atomic_path
     from .scenario import build_legs, read_scenario
+    from .scenario.overrides import combinations, parse_set
 
     if args.output:
         check_out_file(args.output, "--output")
-    scenario = read_scenario(args.scenario)
+    overrides = combinations([parse_set(text, many=False) for text in args.set])[0]
+    scenario = read_scenario(args.scenario, overrides=overrides)
     seed = scenario.seed if args.seed is None else args.seed
     rng = scenario.generator(seed)
     problem, targets = build_legs(scenario, rng)
@@ -258,6 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--seed", type=_SEED, help="override the scenario's seed")
     pl.add_argument("-o", "--output", help="plan JSON file (default media/NAME-plan.json)")
     pl.add_argument("--time-limit", type=seconds, help="override planner.time_limit [s]")
+    pl.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help=_SET_HELP)
     pl.set_defaults(func=_cmd_plan)
 
     r = sub.add_parser(
@@ -272,8 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-render", action="store_true", help="skip the video")
     r.add_argument("--plan", help="execute this plan JSON as it is instead of planning")
     r.add_argument("--time-limit", type=seconds, help="override planner.time_limit [s]")
-    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="set a scenario field (dotted path, YAML scalar), e.g. --set robots.margin=0.2; repeatable")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help=_SET_HELP)
     r.set_defaults(func=_cmd_run)
 
     from .check import add_check_parser

@@ -68,3 +68,19 @@ def test_progress_bar_draws_on_a_terminal_only():
     loud(1.0)
     loud.close()
     assert "100.0%" in forced.getvalue()
+
+
+def test_plan_takes_set_like_run(tmp_path):
+    """``swarmform plan --set`` changes the field before the scenario is checked; a bad one exits 2."""
+    import json
+
+    fig2 = "scenarios/paper/fig2-random-to-C.yaml"
+    out = tmp_path / "p.json"
+    r = subprocess.run([EXE, "plan", fig2, "-o", str(out), "--set", "robots.margin=0.25"],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "(margin 0.25)" in r.stdout and json.loads(out.read_text())["margin"] == 0.25
+    bad = subprocess.run([EXE, "plan", fig2, "-o", str(tmp_path / "q.json"), "--set", "robots.margin=-1"],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--set robots.margin" in bad.stderr
+    assert not (tmp_path / "q.json").exists()
