@@ -304,18 +304,22 @@ def _read_grey(path: Path, where: str | None = None, average: bool = False) -> n
             return np.asarray(im.convert("L"), np.float64)
     except MapError:
         raise
+    except Image.DecompressionBombError:  # Pillow's own size check, from the header, before ours
+        raise MapError(f"{where}: its header declares more pixels than {MAX_SIDE_CELLS} x {MAX_SIDE_CELLS}, "
+                       "the largest map image") from None
     except Exception as exc:  # noqa: BLE001 - any decoder failure on a hostile file is a bad input
-        raise MapError(f"{where}: is not a readable PNG or PGM image ({str(exc)[:60] or type(exc).__name__})") \
-            from None
+        why = re.sub(r"\s*<[^<>]* at 0x[0-9a-fA-F]+>", "", str(exc))[:60] or type(exc).__name__
+        raise MapError(f"{where}: is not a readable PNG or PGM image ({why})") from None
 
 
 def _text(path: Path, max_bytes: int = MAX_MAP_BYTES) -> str:
     from planner.inputfile import UnreadableFile, read_text
 
     try:
-        return read_text(path, max_bytes)
+        text = read_text(path, max_bytes)
     except UnreadableFile as exc:
         raise MapError(f"{_name(path)}: {exc}") from None
+    return text.removeprefix("\ufeff")  # a byte-order mark, as editors on Windows write one
 
 
 def _bytes(path: Path, max_bytes: int, where: str) -> bytes:

@@ -90,6 +90,13 @@ def test_movingai_header_tabs_and_crlf(tmp_path):
     assert read_grid(path).blocked.tolist() == [[False, False, True], [True, False, False]]
 
 
+def test_movingai_byte_order_mark(tmp_path):
+    """A map saved by an editor that writes a UTF-8 byte-order mark reads as without one."""
+    path = tmp_path / "bom.map"
+    path.write_bytes(b"\xef\xbb\xbftype octile\nheight 1\nwidth 2\nmap\n.@\n")
+    assert read_grid(path).blocked.tolist() == [[False, True]]
+
+
 def test_row_zero_is_the_top(tmp_path):
     path = tmp_path / "top.map"
     path.write_text("type octile\nheight 3\nwidth 2\nmap\n@.\n..\n..\n")
