@@ -208,7 +208,9 @@ def run_check(paths, *, baseline=None, update: bool = False, overrides: dict | N
     old: dict[str, dict] = {}
     if baseline is not None:
         base = Path(baseline)
-        if not update:
+        if update:  # made before the first run, so the folder exists while the reports are written
+            base.mkdir(parents=True, exist_ok=True)
+        else:
             if not base.is_dir():
                 raise InputError(f"{base}: --baseline: is not a folder (make one with --update-baseline)")
             old = {n: _read_baseline(base / f"{n}.json") for n in names if (base / f"{n}.json").is_file()}
