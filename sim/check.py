@@ -87,7 +87,7 @@ def scenario_files(paths) -> list[Path]:
         elif p.is_file():
             files.append(p)
         else:
-            raise InputError(f"{p}: file: does not exist")
+            raise InputError(f"{p}: file: no such file")
     return files
 
 

@@ -140,7 +140,7 @@ def test_verdict_and_contacts_must_be_equal():
 
 
 @pytest.mark.parametrize("args, says", [
-    (["check", "no-such.yaml"], "no-such.yaml: file: does not exist"),
+    (["check", "no-such.yaml"], "no-such.yaml: file: no such file"),
     (["check", "EMPTY"], "folder: holds no *.yaml"),
     (["check", GOOD, "--update-baseline"], "--update-baseline: needs --baseline"),
     (["check", GOOD, "--set", "robots.margin"], "must be KEY=VALUE"),
