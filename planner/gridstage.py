@@ -33,8 +33,9 @@ lattice stage's lattice (:mod:`planner.lattice`) but the natural graph.
 4. **Steps**: each time step is one plan step; consecutive steps are then
    merged where the straight joined step is exactly clear
    (:func:`planner.merge.merge_steps`), which cuts stops.  A few routings
-   with ties broken at random are tried and the shortest kept
-   (:func:`grid_plan`).
+   are tried and the shortest kept: targets assigned for the least longest
+   route, by the fewest squares alone, then the first with ties broken at
+   random (:func:`grid_plan`).
 5. **Fewer steps**: TSWAP needs up to twice the shortest routing's steps
    when about half the vertices are taken.  Where the time-expanded graph
    is small enough, the routing with the fewest steps under the same rules
@@ -150,7 +151,7 @@ def step_separated(problem: Problem, a: np.ndarray, b: np.ndarray, reach: float)
     return bool(d.min() >= problem.separation - 1e-9)
 
 
-#: Routings tried by :func:`grid_plan` at most (the first breaks ties by distance only,
+#: Routings tried by :func:`grid_plan` at most (the first two break ties by distance only,
 #: the others also at random), within :data:`GRID_BUDGET_S` seconds.
 GRID_TRIES = 8
 GRID_BUDGET_S = 1.5
@@ -193,7 +194,10 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
         now = time.perf_counter()
         if k and (now > deadline or (now - t0) * (k + 1) / k > GRID_BUDGET_S):
             break
-        raw = grid_waypoints(problem, deadline, grid, None if k == 0 else rng)
+        # the first try assigns the targets for the least longest route, the second by
+        # the fewest squares alone (more robots on long routes, but less crowding at times:
+        # ht_mansion_n, 400 robots), the others as the first with ties broken at random
+        raw = grid_waypoints(problem, deadline, grid, None if k < 2 else rng, bottleneck=k != 1)
         if raw is None:
             if k == 0:
                 return None
@@ -221,14 +225,15 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
 
 def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
                    flow: tuple[int, float] | None = None,
-                   twos: tuple[float, float] | None = None) -> list[np.ndarray] | None:
+                   twos: tuple[float, float] | None = None, bottleneck: bool = True) -> list[np.ndarray] | None:
     """Raw waypoints (one per time step) of the grid stage, or ``None`` (no grid, a start
     or target off the graph, routing stalled, or the deadline).  ``rng``: ties among
     equally far robots broken at random (another try).  ``flow = (steps, budget)``:
     route by :func:`planner.gridflow.flow_route` in fewer than ``steps`` instead.
     ``twos = (seconds, budget)``: route with steps of two cells
     (:func:`planner.superflow.super_route`, uniform grids only) in less than
-    ``seconds`` instead."""
+    ``seconds`` instead.  ``bottleneck``: TSWAP's first assignment (see
+    :func:`planner.tswap.tswap`)."""
     grid = detect_grid(problem) if grid is None else grid
     if grid is None:
         return None
@@ -279,7 +284,7 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
 
         steps = flow_route(lat, sv, gv, deadline, turns=turns, below=flow[0], budget=flow[1])
     else:
-        steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng)
+        steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng, bottleneck=bottleneck)
     if steps is None:
         return None
     raw = [np.asarray(problem.start, float), *(entry or [])]

@@ -29,7 +29,8 @@ robot moving:
 3. **Routing.**  Between the two sets of lattice vertices, TSWAP (Okumura
    and Defago, "Solving simultaneous target assignment and path planning
    efficiently with time-independent execution", AIJ 2023): targets are
-   assigned (minimum sum of squared lattice distances), every robot steps
+   assigned (minimum sum of squared lattice distances among the assignments
+   whose longest distance is the least possible), every robot steps
    towards its target along the lattice distance field each time step
    when the next vertex is free, a robot blocked by one resting on its
    own target swaps targets with it, and a cycle of robots each waiting

@@ -150,3 +150,32 @@ def test_auto_mode_reports_the_pebble_graphs_it_built(monkeypatch):
     assert stats.graphs == len(rm.graphs) - 2 > 0  # besides the start's and the target's
     assert stats.connections == rm.graph.number_of_edges()
     assert stats.g == stats.graphs
+
+
+def _open_grid(nx: int, ny: int):
+    """An obstacle-free ``nx`` x ``ny`` grid of unit spacing as a Lattice (slots: right, up, left, down)."""
+    from planner.grid import Lattice
+
+    ids = np.arange(nx * ny).reshape(nx, ny)
+    pts = np.array([(i, j) for i in range(nx) for j in range(ny)], float)
+    nbr = np.full((nx * ny, 4), -1)
+    for i in range(nx):
+        for j in range(ny):
+            for k, (di, dj) in enumerate(((1, 0), (0, 1), (-1, 0), (0, -1))):
+                if 0 <= i + di < nx and 0 <= j + dj < ny:
+                    nbr[ids[i, j], k] = ids[i + di, j + dj]
+    return Lattice(pts, nbr, 1.0, np.zeros(nx * ny, int)), ids
+
+
+def test_tswap_assigns_for_the_least_longest_route():
+    """Robot A rests on target a = (0, 0); B at (1, 2) is 3 steps from a and 4 from b = (3, 0),
+    A is 3 from b.  The fewest squares (0 + 16 < 9 + 9) keep A home and send B 4 steps; the
+    bottleneck assignment sends both 3 steps (the control without it takes the 4)."""
+    lat, ids = _open_grid(5, 4)
+    start = np.array([ids[0, 0], ids[1, 2]])
+    goal = np.array([ids[0, 0], ids[3, 0]])
+    route = tswap(lat, start, goal, time.perf_counter() + 10, turns=False)
+    assert route is not None and sorted(route[-1].tolist()) == sorted(goal.tolist())
+    assert len(route) == 3
+    control = tswap(lat, start, goal, time.perf_counter() + 10, turns=False, bottleneck=False)
+    assert control is not None and len(control) == 4
