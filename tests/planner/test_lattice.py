@@ -153,18 +153,16 @@ def test_auto_mode_reports_the_pebble_graphs_it_built(monkeypatch):
 
 
 def _open_grid(nx: int, ny: int):
-    """An obstacle-free ``nx`` x ``ny`` grid of unit spacing as a Lattice (slots: right, up, left, down)."""
-    from planner.grid import Lattice
+    """An obstacle-free ``nx`` x ``ny`` grid of unit spacing (:func:`planner.grid.grid_graph`)
+    and its ``(nx, ny)`` table of vertex ids."""
+    from planner.grid import grid_graph
 
-    ids = np.arange(nx * ny).reshape(nx, ny)
-    pts = np.array([(i, j) for i in range(nx) for j in range(ny)], float)
-    nbr = np.full((nx * ny, 4), -1)
-    for i in range(nx):
-        for j in range(ny):
-            for k, (di, dj) in enumerate(((1, 0), (0, 1), (-1, 0), (0, -1))):
-                if 0 <= i + di < nx and 0 <= j + dj < ny:
-                    nbr[ids[i, j], k] = ids[i + di, j + dj]
-    return Lattice(pts, nbr, 1.0, np.zeros(nx * ny, int)), ids
+    p = Problem(nx + 1.0, ny + 1.0, (), 0.3, 0.1, np.zeros((0, 2)), np.zeros((0, 2)))
+    gi, gj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    pts = np.stack([1.0 + gi.ravel(), 1.0 + gj.ravel()], axis=1).astype(float)
+    lat, ok, vid = grid_graph(p, pts, nx, ny, 1.0)
+    assert ok.all()
+    return lat, vid
 
 
 def test_tswap_assigns_for_the_least_longest_route():
