@@ -13,23 +13,58 @@ __all__ = ["tswap"]
 
 
 def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | None:
-    """``(len(sources), V)`` lattice distances (steps) from each source; -1 unreachable."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import shortest_path
+    """``(len(sources), V)`` lattice distances (steps) from each source; -1 unreachable.
 
-    v = np.repeat(np.arange(lat.n), 4)
+    One breadth-first search per source (:func:`scipy.sparse.csgraph.breadth_first_order`,
+    in C), then the depths from its order: the vertices come level by level and the
+    position of a vertex's predecessor never decreases along the order, so level
+    ``L + 1`` ends after the last vertex whose predecessor lies within the first ``L``
+    levels, found for a chunk of sources at once by one :func:`numpy.searchsorted` per
+    level.  (Dijkstra's method in :func:`scipy.sparse.csgraph.shortest_path`, used
+    before, took 14 ms per source on the 96,603 vertices of orz900d; this takes 4.)"""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order
+
+    n = lat.n
+    v = np.repeat(np.arange(n), 4)
     w = lat.nbr.ravel()
     ok = w >= 0
-    g = coo_matrix((np.ones(int(ok.sum())), (v[ok], w[ok])), shape=(lat.n, lat.n)).tocsr()
-    dtype = np.int16 if lat.n < 30_000 else np.int32
-    out = np.empty((len(sources), lat.n), dtype)
-    chunk = max(1, min(128, 1_000_000 // max(lat.n, 1)))  # small chunks: the deadline is checked between
-    for s in range(0, len(sources), chunk):
+    g = coo_matrix((np.ones(int(ok.sum())), (v[ok], w[ok])), shape=(n, n)).tocsr()
+    g = g.maximum(g.T).tocsr()  # undirected, once (not in every search)
+    dtype = np.int16 if n < 30_000 else np.int32
+    sources = np.asarray(sources, int)
+    out = np.full((len(sources), n), -1, dtype)
+    if not len(sources):
+        return out
+    chunk = max(1, min(128, 4_000_000 // max(n, 1)))  # the deadline is checked between chunks
+    pos = np.empty(n, np.int64)
+    for c0 in range(0, len(sources), chunk):
         if time.perf_counter() > deadline:
             return None
-        d = shortest_path(g, method="D", directed=False, unweighted=True, indices=sources[s : s + chunk])
-        d[~np.isfinite(d)] = -1
-        out[s : s + chunk] = d
+        orders, preds, sizes = [], [], []
+        for r, s in enumerate(sources[c0 : c0 + chunk]):
+            order, pred = breadth_first_order(g, int(s), directed=True, return_predecessors=True)
+            pos[order] = np.arange(len(order))
+            # predecessor positions of the non-source vertices, offset so that every
+            # source's run sorts after the previous one's
+            preds.append(pos[pred[order[1:]]] + r * (n + 1))
+            orders.append(order)
+            sizes.append(len(order))
+        k = len(orders)
+        size = np.asarray(sizes, np.int64)
+        flat = np.concatenate(preds)
+        offset = np.arange(k, dtype=np.int64) * (n + 1)
+        begin = np.concatenate([[0], np.cumsum(size - 1)[:-1]])  # each run's start in flat
+        end = np.ones(k, np.int64)  # level 0: the source alone
+        ends = [end]
+        while (end < size).any():
+            end = np.minimum(np.searchsorted(flat, end + offset) - begin + 1, size)
+            ends.append(end)
+        table = np.stack(ends)  # (levels, k): where each level ends in each order
+        for r in range(k):
+            e = table[:, r]
+            e = e[: int(np.searchsorted(e, size[r])) + 1]
+            out[c0 + r, orders[r]] = np.repeat(np.arange(len(e), dtype=dtype), np.diff(e, prepend=0))
     return out
 
 

@@ -177,3 +177,34 @@ def test_tswap_assigns_for_the_least_longest_route():
     assert len(route) == 3
     control = tswap(lat, start, goal, time.perf_counter() + 10, turns=False, bottleneck=False)
     assert control is not None and len(control) == 4
+
+
+def test_tswap_distance_fields_are_breadth_first_distances():
+    """The fields TSWAP routes by are the lattice's shortest step counts (networkx's
+    breadth-first search), -1 across components, on a grid with walls and a sealed room."""
+    import networkx as nx
+
+    from planner.grid import Lattice
+    from planner.tswap import _fields
+
+    lat, ids = _open_grid(9, 7)
+    nbr = lat.nbr.copy()
+    cut = {(int(a), int(b)) for i in range(7) for a, b in [(ids[4, i], ids[5, i])] if i != 3}  # a wall, one door
+    cut |= {(int(ids[i, 5]), int(ids[i, 6])) for i in range(3)} | {(int(ids[2, 6]), int(ids[3, 6]))}  # a sealed room
+    for a, b in cut:
+        nbr[a][nbr[a] == b] = -1
+        nbr[b][nbr[b] == a] = -1
+    walled = Lattice(lat.points, nbr, lat.spacing, lat.component)
+    g = nx.Graph((v, int(w)) for v in range(walled.n) for w in nbr[v] if w >= 0)
+    g.add_nodes_from(range(walled.n))
+    sources = np.array([ids[0, 0], ids[8, 6], ids[0, 6], ids[4, 3], ids[0, 0]])
+    field = _fields(walled, sources, time.perf_counter() + 10)
+    assert field is not None and field.shape == (len(sources), walled.n)
+    for row, s in zip(field, sources):
+        want = np.full(walled.n, -1)
+        for v, d in nx.single_source_shortest_path_length(g, int(s)).items():
+            want[v] = d
+        assert np.array_equal(row, want)
+    assert field[0, ids[8, 0]] == 8 + 2 * 3  # through the door at row 3, not across the wall
+    assert (field[2] >= 0).sum() == 3  # the sealed room: three cells
+    assert _fields(walled, np.array([], int), time.perf_counter() + 10).shape == (0, walled.n)
