@@ -191,6 +191,7 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
     if rng is None:
         raise ValueError("rng: the grid stage draws its tie-breaks from the run's generator; pass it")
     best = None
+    memo: dict = {}  # what the tries share: the snapping rounds, TSWAP's fields and assignments
     for k in range(GRID_TRIES):
         now = time.perf_counter()
         if k and (now > deadline or (now - t0) * (k + 1) / k > GRID_BUDGET_S):
@@ -198,7 +199,7 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
         # even tries assign the targets for the least longest route, odd ones by the fewest
         # squares alone (more robots on long routes, but at times less crowding: room-32-32-4
         # at 100 robots, 14 steps against 15); from the third on, ties are broken at random
-        raw = grid_waypoints(problem, deadline, grid, None if k < 2 else rng, bottleneck=k % 2 == 0)
+        raw = grid_waypoints(problem, deadline, grid, None if k < 2 else rng, bottleneck=k % 2 == 0, memo=memo)
         if raw is None:
             if k == 0:
                 return None
@@ -226,7 +227,8 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
 
 def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
                    flow: tuple[int, float] | None = None,
-                   twos: tuple[float, float] | None = None, bottleneck: bool = True) -> list[np.ndarray] | None:
+                   twos: tuple[float, float] | None = None, bottleneck: bool = True,
+                   memo: dict | None = None) -> list[np.ndarray] | None:
     """Raw waypoints (one per time step) of the grid stage, or ``None`` (no grid, a start
     or target off the graph, routing stalled, or the deadline).  ``rng``: ties among
     equally far robots broken at random (another try).  ``flow = (steps, budget)``:
@@ -234,7 +236,8 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
     ``twos = (seconds, budget)``: route with steps of two cells
     (:func:`planner.superflow.super_route`, uniform grids only) in less than
     ``seconds`` instead.  ``bottleneck``: TSWAP's first assignment (see
-    :func:`planner.tswap.tswap`)."""
+    :func:`planner.tswap.tswap`).  ``memo``: a dict kept between the tries of one problem,
+    which then share the snapping rounds and TSWAP's distance fields and assignments."""
     grid = detect_grid(problem) if grid is None else grid
     if grid is None:
         return None
@@ -258,16 +261,19 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
         return vid[ij[:, 0], ij[:, 1]]
 
     sv, gv = vertex(problem.start), vertex(problem.target)
-    entry = leave = None  # snapping rounds onto the grid (placements off it)
+    memo = {} if memo is None else memo
+    entry = leave = None  # snapping rounds onto the grid (placements off it; no random draws)
     if not _on(lat, sv, problem.start):
-        got = snap(problem, lat, problem.start, deadline)
+        got = memo.get("start") or snap(problem, lat, problem.start, deadline)
         if got is None:
             return None
+        memo["start"] = got
         entry, sv = got
     if not _on(lat, gv, problem.target):
-        got = snap(problem, lat, problem.target, deadline)
+        got = memo.get("target") or snap(problem, lat, problem.target, deadline)
         if got is None:
             return None
+        memo["target"] = got
         leave, gv = got
     # sqrt(2) * separation or more: following with a turn is safe too
     turns = (lines.gap if lines is not None else c) >= math.sqrt(2.0) * problem.separation
@@ -285,7 +291,8 @@ def grid_waypoints(problem: Problem, deadline: float, grid=None, rng=None,
 
         steps = flow_route(lat, sv, gv, deadline, turns=turns, below=flow[0], budget=flow[1])
     else:
-        steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng, bottleneck=bottleneck)
+        steps = tswap(lat, sv, gv, deadline, turns=turns, rng=rng, bottleneck=bottleneck,
+                      memo=memo.setdefault("tswap", {}))
     if steps is None:
         return None
     raw = [np.asarray(problem.start, float), *(entry or [])]

@@ -68,9 +68,29 @@ def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | 
     return out
 
 
+def _assign(cost: np.ndarray, bottleneck: bool) -> np.ndarray:
+    """Goal of each robot: the fewest summed squared distances, among the assignments of
+    the least longest distance when ``bottleneck`` (see :func:`tswap`)."""
+    from scipy.optimize import linear_sum_assignment
+
+    m = len(cost)
+    _, goal_of = linear_sum_assignment(cost**2)
+    if bottleneck and m > 1:
+        # the sum of squares can leave a robot far longer than needed (random-64-64-10, 200
+        # robots: 18 steps where the bottleneck is 12): the fewest squares among the
+        # assignments of the least longest distance (rows with pairs over it barred)
+        from .bounds import _bottleneck
+
+        top = float(cost[np.arange(m), goal_of].max())
+        least = _bottleneck(cost, top)
+        if least < top:
+            _, goal_of = linear_sum_assignment(np.where(cost <= least, cost**2, 1e12))
+    return goal_of
+
+
 def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float,
           max_steps: int | None = None, turns: bool = True, rng=None,
-          bottleneck: bool = True) -> list[np.ndarray] | None:
+          bottleneck: bool = True, memo: dict | None = None) -> list[np.ndarray] | None:
     """Time steps (vertex of every robot after each) from ``start_v`` to the set ``goal_v``.
 
     TSWAP (see :mod:`planner.lattice`), synchronous: per time step, first
@@ -87,32 +107,32 @@ def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float
     Targets are first assigned by the fewest summed squared lattice distances
     among the assignments of the least longest one (``bottleneck``; false: the
     fewest squares alone, which can leave one robot far longer on its way).
+    ``memo``: a dict kept between calls on the same lattice; the distance fields and
+    both assignments are computed once in it (they depend on nothing else).
     """
-    from scipy.optimize import linear_sum_assignment
-
     m = len(start_v)
     goals = np.asarray(goal_v, int)
-    field = _fields(lat, goals, deadline)
-    if field is None:
-        return None
-    cost = field[:, start_v].T.astype(float)  # (robot, goal)
-    if (cost < 0).any():
-        # robots and targets in different lattice components: only matching counts can work
-        if np.any(np.bincount(lat.component[start_v], minlength=lat.n)
-                  != np.bincount(lat.component[goals], minlength=lat.n)):
+    key = (id(lat), np.asarray(start_v, int).tobytes(), goals.tobytes())
+    memo = {} if memo is None else memo
+    if memo.get("key") != key:
+        memo.clear()
+        memo["key"] = key
+    if "cost" not in memo:
+        field = _fields(lat, goals, deadline)
+        if field is None:
             return None
-        cost[cost < 0] = 1e9
-    _, goal_of = linear_sum_assignment(cost**2)
-    if bottleneck and m > 1:
-        # the sum of squares can leave a robot far longer than needed (random-64-64-10, 200
-        # robots: 18 steps where the bottleneck is 12): the fewest squares among the
-        # assignments of the least longest distance (rows with pairs over it barred)
-        from .bounds import _bottleneck
-
-        top = float(cost[np.arange(m), goal_of].max())
-        least = _bottleneck(cost, top)
-        if least < top:
-            _, goal_of = linear_sum_assignment(np.where(cost <= least, cost**2, 1e12))
+        cost = field[:, start_v].T.astype(float)  # (robot, goal)
+        if (cost < 0).any():
+            # robots and targets in different lattice components: only matching counts can work
+            if np.any(np.bincount(lat.component[start_v], minlength=lat.n)
+                      != np.bincount(lat.component[goals], minlength=lat.n)):
+                return None
+            cost[cost < 0] = 1e9
+        memo.update(field=field, cost=cost)
+    field, cost = memo["field"], memo["cost"]
+    if ("assign", bottleneck) not in memo:
+        memo[("assign", bottleneck)] = _assign(cost, bottleneck)
+    goal_of = memo[("assign", bottleneck)].copy()
     goal_of = goal_of.tolist()  # robot -> goal index
     pts = lat.points
     nbr = lat.nbr.tolist()

@@ -208,3 +208,27 @@ def test_tswap_distance_fields_are_breadth_first_distances():
     assert field[0, ids[8, 0]] == 8 + 2 * 3  # through the door at row 3, not across the wall
     assert (field[2] >= 0).sum() == 3  # the sealed room: three cells
     assert _fields(walled, np.array([], int), time.perf_counter() + 10).shape == (0, walled.n)
+
+
+def test_tswap_tries_share_fields_and_assignments_through_the_memo(monkeypatch):
+    """With a memo, later tries on the same robots compute no distance field again and
+    route exactly as a fresh call; other robots start afresh."""
+    import planner.tswap as ts
+
+    lat, ids = _open_grid(8, 6)
+    start = ids[:3].ravel()
+    goal = ids[-3:].ravel()
+    fresh = [tswap(lat, start, goal, time.perf_counter() + 10, rng=np.random.default_rng(5), bottleneck=b)
+             for b in (True, False)]
+    calls = []
+    real = ts._fields
+    monkeypatch.setattr(ts, "_fields", lambda *a: calls.append(1) or real(*a))
+    memo: dict = {}
+    for _ in range(2):
+        for b, want in zip((True, False), fresh):
+            got = tswap(lat, start, goal, time.perf_counter() + 10, rng=np.random.default_rng(5), bottleneck=b, memo=memo)
+            assert got is not None and len(got) == len(want)
+            assert all(np.array_equal(x, y) for x, y in zip(got, want))
+    assert len(calls) == 1
+    other = tswap(lat, ids[:2].ravel(), goal[:12], time.perf_counter() + 10, memo=memo)
+    assert other is not None and len(calls) == 2
