@@ -74,24 +74,38 @@ def _check(deadline) -> None:
 
 
 def _inscribed(problem: Problem) -> list[np.ndarray]:
-    """The inscribed polygons ``O`` (counter-clockwise), one per convex polygon or disc."""
+    """The inscribed polygons ``O`` (counter-clockwise), one per convex polygon or disc.
+
+    Polygons of the same vertex count are done together (maps give thousands of
+    rectangles)."""
     c = problem.clearance
-    out = []
-    for ob in problem.obstacles:
-        if hasattr(ob, "vertices"):
-            v = np.asarray(ob.vertices, float)
-            e = np.roll(v, -1, axis=0) - v  # edge k: v[k] -> v[k + 1]
-            e2 = np.roll(e, -1, axis=0)
-            cross = e[:, 0] * e2[:, 1] - e[:, 1] * e2[:, 0]
-            if (cross < -1e-12 * np.abs(e).max() ** 2).any():
-                continue  # not convex: left out (the bound stays valid)
-            n = np.stack([e[:, 1], -e[:, 0]], axis=1)
-            n /= np.linalg.norm(n, axis=1, keepdims=True)
-            n_in = np.roll(n, 1, axis=0)  # normal of the edge into vertex k
-            pts = np.stack([v + c * n_in, v + c * n], axis=1).reshape(-1, 2)
-        else:
+    found: dict[int, np.ndarray] = {}
+    sizes: dict[int, list[int]] = {}
+    for i, ob in enumerate(problem.obstacles):
+        sizes.setdefault(len(ob.vertices) if hasattr(ob, "vertices") else 0, []).append(i)
+    for k, idx in sizes.items():
+        if k == 0:  # discs
             ang = np.arange(_CIRCLE_SIDES) * 2 * np.pi / _CIRCLE_SIDES
-            pts = np.asarray(ob.center, float) + (ob.radius + c) * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+            ring = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+            for i in idx:
+                ob = problem.obstacles[i]
+                found[i] = np.asarray(ob.center, float) + (ob.radius + c) * ring
+            continue
+        v = np.stack([np.asarray(problem.obstacles[i].vertices, float) for i in idx])  # (P, K, 2)
+        e = np.roll(v, -1, axis=1) - v  # edge k: v[k] -> v[k + 1]
+        e2 = np.roll(e, -1, axis=1)
+        cross = e[..., 0] * e2[..., 1] - e[..., 1] * e2[..., 0]
+        convex = ~(cross < -1e-12 * (np.abs(e).max(axis=(1, 2)) ** 2)[:, None]).any(axis=1)
+        n = np.stack([e[..., 1], -e[..., 0]], axis=-1)
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        n_in = np.roll(n, 1, axis=1)  # normal of the edge into vertex k
+        pts = np.stack([v + c * n_in, v + c * n], axis=2).reshape(len(idx), -1, 2)
+        for i, p, ok in zip(idx, pts, convex):
+            if ok:  # not convex: left out (the bound stays valid)
+                found[i] = p
+    out = []
+    for i in sorted(found):
+        pts = found[i]
         keep = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > 1e-12 * c
         pts = pts[keep]
         if len(pts) >= 3:
