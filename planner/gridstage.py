@@ -208,6 +208,7 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
         span = _makespan(problem, w)
         if best is None or span < best[2]:
             best = (w, len(raw) - 1, span)
+    memo.pop("tswap", None)  # its fields (robots x vertices) are not needed by the searches below
     if (best is not None and best[1] > 1 and problem.m >= FLOW_MIN_ROBOTS
             and problem.m >= FLOW_MIN_OCCUPANCY * _graph(problem, grid)[0].n):  # built by the tries
         # the fewest steps (planner.gridflow), then steps of two cells (planner.superflow,
@@ -216,7 +217,7 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
             left = deadline - time.perf_counter()
             budget = min(FLOW_BUDGET_S, left / 3, route_budget(problem.m))
             arg = {"flow": (best[1], budget)} if kind == "flow" else {"twos": (best[2], budget)}
-            raw = grid_waypoints(problem, deadline, grid, **arg)
+            raw = grid_waypoints(problem, deadline, grid, memo=memo, **arg)
             if raw is not None:
                 w = merge_steps(problem, _drop_idle(raw), deadline)
                 span = _makespan(problem, w)

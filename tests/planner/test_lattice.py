@@ -6,6 +6,7 @@ import math
 import time
 
 import numpy as np
+import pytest
 
 from planner import NoPlanFound, Plan, PlannerParams, Polygon, Problem, check_plan, plan
 from planner.bounds import lower_bounds
@@ -179,13 +180,18 @@ def test_tswap_assigns_for_the_least_longest_route():
     assert control is not None and len(control) == 4
 
 
-def test_tswap_distance_fields_are_breadth_first_distances():
+@pytest.mark.parametrize("bfs_from", [0, 10**9], ids=["breadth-first", "dijkstra"])
+def test_tswap_distance_fields_are_breadth_first_distances(bfs_from, monkeypatch):
     """The fields TSWAP routes by are the lattice's shortest step counts (networkx's
-    breadth-first search), -1 across components, on a grid with walls and a sealed room."""
+    breadth-first search), -1 across components, on a grid with walls and a sealed room,
+    by either of its two methods (large lattices and small)."""
     import networkx as nx
 
+    import planner.tswap as ts
     from planner.grid import Lattice
     from planner.tswap import _fields
+
+    monkeypatch.setattr(ts, "_BFS_FROM", bfs_from)
 
     lat, ids = _open_grid(9, 7)
     nbr = lat.nbr.copy()
