@@ -177,6 +177,16 @@ def _program(lat: Lattice, sv, gv, horizon: int, turns: bool):
     return a, np.concatenate(lo), np.concatenate(hi), cost, (t_, v_, k_, h_)
 
 
+#: HiGHS's presolve on the programs of :func:`flow_route`.  Off: on the programs captured
+#: from room-32-32-4 (200 and 400 robots), random-32-32-20 (400) and maze-32-32-2 (200)
+#: a routing that exists is found in 0.6-2.3 s instead of 1.0-3.1 s, which the search's
+#: budget (a quarter per program) then fits; what the presolve gains is proofs of
+#: infeasibility, which take longer than that budget either way (room at 200 robots and 11
+#: steps: 5.8 s).  The programs of steps of two cells (:mod:`planner.superflow`) keep it:
+#: there it was faster on some and slower on others.
+PRESOLVE = False
+
+
 def _solve(lat: Lattice, sv, gv, horizon: int, turns: bool, budget: float):
     """Vertex of every robot at every step ``(horizon + 1, m)`` for ``horizon`` steps,
     ``None`` when there is none, ``"unknown"`` when the budget ran out first, or
@@ -187,8 +197,8 @@ def _solve(lat: Lattice, sv, gv, horizon: int, turns: bool, budget: float):
     if prog is None:
         return "too big"
     a, lo, hi, cost, (t_, v_, k_, h_) = prog
-    res = milp(cost, integrality=np.ones(len(cost)), bounds=(0, 1),
-               constraints=LinearConstraint(a, lo, hi), options={"time_limit": max(budget, 0.05), "disp": False})
+    res = milp(cost, integrality=np.ones(len(cost)), bounds=(0, 1), constraints=LinearConstraint(a, lo, hi),
+               options={"time_limit": max(budget, 0.05), "disp": False, "presolve": PRESOLVE})
     if res.status == 2:  # infeasible
         return None
     if res.x is None or res.status != 0:
