@@ -172,7 +172,11 @@ def _locate(parts: list, points: np.ndarray) -> np.ndarray | None:
     import shapely
 
     tree = shapely.STRtree(parts)
-    idx_pt, idx_part = tree.query(shapely.points(points), predicate="intersects")
+    pts = shapely.points(points)
+    idx_pt, idx_part = tree.query(pts)  # boxes only: the exact test below runs on prepared parts
+    shapely.prepare(parts)  # (a maze's free space is one polygon of thousands of vertices)
+    keep = shapely.intersects(np.asarray(parts, dtype=object)[idx_part], pts[idx_pt])
+    idx_pt, idx_part = idx_pt[keep], idx_part[keep]
     if len(points) and (np.bincount(idx_pt, minlength=len(points)) != 1).any():
         return None
     out = np.empty(len(points), int)
