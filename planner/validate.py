@@ -133,13 +133,21 @@ def min_clearance(problem: Problem, plan: Plan) -> Clearance:
     if len(step) == 0:
         return best
     am, bm = w[step, robot], w[step + 1, robot]
-    cl, who = env.segment_clearance_detail(am, bm)
-    n = int(np.argmin(cl))
-    if cl[n] - r < best.value:
-        k, i, ob = int(step[n]), int(robot[n]), int(who[n])
-        theta = _segment_theta(w[k, i], w[k + 1, i], problem, ob)
-        best = Clearance(float(cl[n] - r), "robot-obstacle" if ob >= 0 else "robot-wall",
-                         (i,), ob if ob >= 0 else None, k, _theta_to_time(plan, k, theta))
+    # Only moves that come nearer than the gap found so far can lower it: the others (the
+    # exact test of keeping that clearance passes them) are left out, and the exact
+    # distances are taken of the rest (on a map of thousands of obstacles most of the
+    # check: orz900d, 100 robots, 1.2 s before).  The earliest minimum stays the earliest:
+    # every move attaining it is among the rest, in step order.
+    near = np.flatnonzero(~env.segments_clear(am, bm, best.value + r))
+    if len(near):
+        cl, who = env.segment_clearance_detail(am[near], bm[near])
+        j = int(np.argmin(cl))
+        if cl[j] - r < best.value:
+            n = int(near[j])
+            k, i, ob = int(step[n]), int(robot[n]), int(who[j])
+            theta = _segment_theta(w[k, i], w[k + 1, i], problem, ob)
+            best = Clearance(float(cl[j] - r), "robot-obstacle" if ob >= 0 else "robot-wall",
+                             (i,), ob if ob >= 0 else None, k, _theta_to_time(plan, k, theta))
     if m > 1:
         # Each move against every robot of its step (a parked robot is a
         # zero-length move), in chunks that bound the temporaries.

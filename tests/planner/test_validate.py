@@ -153,3 +153,36 @@ def test_gap_between_zero_and_the_margin_is_invalid(case):
     assert info.value.clearance.value == pytest.approx(0.05, abs=1e-9)
     # a brute-force sample agrees that nothing touches
     assert 0 < _brute_force(problem, plan, 2000) < problem.margin
+
+
+def _reference(problem: Problem, plan: Plan):
+    """min_clearance's obstacle part without leaving any move out: every move's exact
+    clearance (``segment_clearance_detail``), the start placement's, the earliest minimum."""
+    w, r, env = plan.waypoints, problem.radius, problem.env
+    c0, who0 = env.point_clearance_detail(w[0])
+    best = (float(c0.min() - r), -1, int(who0[np.argmin(c0)]))
+    step, robot = np.nonzero(np.any(w[1:] != w[:-1], axis=2))
+    if len(step):
+        cl, who = env.segment_clearance_detail(w[step, robot], w[step + 1, robot])
+        n = int(np.argmin(cl))
+        if cl[n] - r < best[0]:
+            best = (float(cl[n] - r), int(step[n]), int(who[n]))
+    return best
+
+
+@settings(max_examples=150, deadline=None)
+@given(random_plans(), st.floats(0.0, 6.0))
+def test_min_clearance_leaves_out_only_moves_that_cannot_lower_it(w, lift):
+    """The moves kept away from obstacles are left out of the exact distances; the minimum,
+    its step and its obstacle are those of taking every move (single robots, so no
+    robot pair intervenes), also when the start placement sits far from everything
+    (``lift``: the start moved away, so nearly every move is a candidate) or close."""
+    w = w[:, :1].copy()
+    w[0] = np.clip(w[0] + lift, 2, 38)
+    problem = _problem(w[0])
+    plan = Plan.from_waypoints(w, 1.0, 0.1, 2.0, 2.0)
+    c = min_clearance(problem, plan)
+    value, step, who = _reference(problem, plan)
+    assert c.value == value
+    assert c.step == step
+    assert (c.obstacle if c.obstacle is not None else -1) == who
