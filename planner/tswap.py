@@ -83,14 +83,19 @@ def _fields(lat: Lattice, sources: np.ndarray, deadline: float) -> np.ndarray | 
     return out
 
 
-def _assign(cost: np.ndarray, bottleneck: bool) -> np.ndarray:
+def _assign(cost: np.ndarray, bottleneck: bool, memo: dict) -> np.ndarray:
     """Goal of each robot: the fewest summed squared distances, among the assignments of
-    the least longest distance when ``bottleneck`` (see :func:`tswap`)."""
+    the least longest distance when ``bottleneck`` (see :func:`tswap`); both kept in
+    ``memo``, the second starting from the first."""
     from scipy.optimize import linear_sum_assignment
 
+    if ("assign", False) not in memo:
+        memo[("assign", False)] = linear_sum_assignment(cost**2)[1]
+    goal_of = memo[("assign", False)]
     m = len(cost)
-    _, goal_of = linear_sum_assignment(cost**2)
-    if bottleneck and m > 1:
+    if not bottleneck or m <= 1:
+        return goal_of
+    if ("assign", True) not in memo:
         # the sum of squares can leave a robot far longer than needed (random-64-64-10, 200
         # robots: 18 steps where the bottleneck is 12): the fewest squares among the
         # assignments of the least longest distance (rows with pairs over it barred)
@@ -99,8 +104,9 @@ def _assign(cost: np.ndarray, bottleneck: bool) -> np.ndarray:
         top = float(cost[np.arange(m), goal_of].max())
         least = _bottleneck(cost, top)
         if least < top:
-            _, goal_of = linear_sum_assignment(np.where(cost <= least, cost**2, 1e12))
-    return goal_of
+            goal_of = linear_sum_assignment(np.where(cost <= least, cost**2, 1e12))[1]
+        memo[("assign", True)] = goal_of
+    return memo[("assign", True)]
 
 
 def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float,
@@ -145,10 +151,7 @@ def tswap(lat: Lattice, start_v: np.ndarray, goal_v: np.ndarray, deadline: float
             cost[cost < 0] = 1e9
         memo.update(field=field, cost=cost)
     field, cost = memo["field"], memo["cost"]
-    if ("assign", bottleneck) not in memo:
-        memo[("assign", bottleneck)] = _assign(cost, bottleneck)
-    goal_of = memo[("assign", bottleneck)].copy()
-    goal_of = goal_of.tolist()  # robot -> goal index
+    goal_of = _assign(cost, bottleneck, memo).tolist()  # robot -> goal index
     pts = lat.points
     nbr = lat.nbr.tolist()
     gpts = pts[goals]
