@@ -167,17 +167,22 @@ def _read_movingai(path: Path) -> Grid:
     for i, want in enumerate(("type", "height", "width", "map")):
         line = lines[i].strip() if i < len(lines) else ""
         word, value = (line.split(None, 1) + ["", ""])[:2]  # any whitespace between (some files use tabs)
-        if word.lower() != want:
+        word = word.lower()
+        if i == 1 and word == "width":
+            want = "width"  # height and width in either order, as some converters write them
+        elif i == 2:
+            want = "width" if "height" in header else "height"
+        if word != want:
             shown = line if len(line) <= 30 else line[:27] + "..."
             raise MapError(f"{name} line {i + 1}: expected {want!r} (a MovingAI map starts with type, height, "
                            f"width, map), got {shown!r}")
         header[want] = value.strip()
-    if header["type"] != "octile":
+    if header["type"].lower() != "octile":
         raise MapError(f"{name} line 1: type must be octile, got {header['type'][:30]!r}")
     rows = _side(header["height"], f"{name} line 2: height")
     cols = _side(header["width"], f"{name} line 3: width")
     _check_cells(rows, cols, name)
-    body = [ln.rstrip("\r") for ln in lines[4:]]
+    body = [ln.rstrip(" \t\r") for ln in lines[4:]]  # trailing blanks are no cells
     while body and not body[-1].strip():
         body.pop()
     if len(body) != rows:

@@ -1,7 +1,7 @@
 """MovingAI scenario files (``.scen``): the start and goal cells of the first N agents.
 
-Format: the first line is ``version 1`` (or ``version 1.0``), then one agent a
-line, tab-separated: ``bucket map width height start_x start_y goal_x goal_y
+Format: the first line is ``version 1`` (or ``version 1.0``; older files leave it
+out), then one agent a line, tab-separated: ``bucket map width height start_x start_y goal_x goal_y
 optimal_length``, where x is the column and y the row counted from the top.
 Only the first ``count`` agents' lines are parsed; the file is read only when
 it is a regular file of at most :data:`MAX_SCEN_BYTES`.
@@ -34,11 +34,14 @@ def read_scen(path: Path, count: int, grid: Grid | None, goal: bool) -> np.ndarr
     name = _name(path)
     lines = _text(path, MAX_SCEN_BYTES).split("\n")
     first = lines[0].strip() if lines else ""
-    if not re.fullmatch(r"version\s+1(\.0)?", first):
-        raise MapError(f"{name} line 1: expected 'version 1' (a MovingAI .scen file), got {first[:30]!r}")
+    body = 1
+    if not re.fullmatch(r"version\s+1(\.0)?", first, re.IGNORECASE):
+        if len(first.split("\t") if "\t" in first else first.split()) != 9:
+            raise MapError(f"{name} line 1: expected 'version 1' (a MovingAI .scen file), got {first[:30]!r}")
+        body = 0  # no version line (older files): the agents start on line 1
     out = np.zeros((count, 2), np.int64)
     k = 0
-    for i, raw in enumerate(lines[1:], start=2):
+    for i, raw in enumerate(lines[body:], start=body + 1):
         if k == count:
             break
         line = raw.rstrip("\r")

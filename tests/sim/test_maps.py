@@ -90,6 +90,20 @@ def test_movingai_header_tabs_and_crlf(tmp_path):
     assert read_grid(path).blocked.tolist() == [[False, False, True], [True, False, False]]
 
 
+def test_movingai_lenient_forms_read_as_the_standard_one(tmp_path):
+    """What converters write besides the standard form: width before height, ``Type Octile``,
+    blanks after a row. Each reads as the plain file; a row one cell too long is still refused."""
+    path = tmp_path / "odd.map"
+    path.write_text("Type Octile\nwidth 3\nheight 2\nMAP\n..@  \nT..\t\n")
+    assert read_grid(path).blocked.tolist() == [[False, False, True], [True, False, False]]
+    path.write_text("type octile\nwidth 3\nheight 2\nmap\n..@.\nT..\n")
+    with pytest.raises(MapError, match=r"row 1 \(line 5\): has 4 cells, but its header declares width 3"):
+        read_grid(path)
+    path.write_text("type octile\nwidth 3\nwidth 2\nmap\n..@\nT..\n")
+    with pytest.raises(MapError, match=r"line 3: expected 'height'"):  # no height at all
+        read_grid(path)
+
+
 def test_movingai_byte_order_mark(tmp_path):
     """A map saved by an editor that writes a UTF-8 byte-order mark reads as without one."""
     path = tmp_path / "bom.map"
@@ -149,6 +163,20 @@ def test_scen_starts_and_targets_are_cell_centres(tmp_path):
     assert s.target.points == ((10.5, 7.5), (1.5, 7.5))
     problem = build_problem(s, np.random.default_rng(0))
     assert len(problem.obstacles) == len(cover(read_grid(tmp_path / "tiny.map"), 3.0))
+
+
+def test_scen_without_a_version_line(tmp_path):
+    """Older ``.scen`` files start with the first agent; a first line that is neither is refused."""
+    (tmp_path / "a.scen").write_text("0\ttiny.map\t5\t4\t1\t0\t3\t1\t2.0\n0\ttiny.map\t5\t4\t4\t3\t0\t1\t5.0\n")
+    path = _tiny_scenario(tmp_path, "start: {scen: a.scen, count: 2}\ntarget: {scen: a.scen, count: 2}\n")
+    s = read_scenario(path)
+    assert s.start.points == ((4.5, 10.5), (13.5, 1.5))
+    (tmp_path / "a.scen").write_text("Version 1\n0\ttiny.map\t5\t4\t1\t0\t3\t1\t2.0\n")
+    path = _tiny_scenario(tmp_path, "start: {scen: a.scen, count: 1}\ntarget: {scen: a.scen, count: 1}\n")
+    assert read_scenario(path).start.points == ((4.5, 10.5),)
+    (tmp_path / "a.scen").write_text("version 2\n0\ttiny.map\t5\t4\t1\t0\t3\t1\t2.0\n")
+    with pytest.raises(ScenarioError, match=r"line 1: expected 'version 1'"):
+        read_scenario(path)
 
 
 def test_scen_checks_blocked_cells_and_sizes(tmp_path):
