@@ -82,7 +82,10 @@ def merge_steps(problem: Problem, waypoints: np.ndarray, deadline: float | None 
     w = np.asarray(waypoints, float)
     if len(w) <= 2:
         return w
-    two = steps_clear(problem, w[:-2], w[2:], deadline)  # two[k]: w[k] -> w[k + 2] straight is clear
+    # two[k]: w[k] -> w[k + 2] straight is clear; a move straight on through w[k + 1] is the
+    # union of its two pieces, so only the others are tested against the obstacles (a merged
+    # step is then clear of them exactly when its pieces were)
+    two = steps_clear(problem, w[:-2], w[2:], deadline, via=w[1:-1])
     out = [w[0], w[1]]
     first = 0  # index in w of out[-2]
     for i in range(2, len(w)):

@@ -41,12 +41,18 @@ def step_clear(problem: Problem, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(steps_clear(problem, np.asarray(a)[None], np.asarray(b)[None])[0])
 
 
-def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float | None = None) -> np.ndarray:
+def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float | None = None,
+                via: np.ndarray | None = None) -> np.ndarray:
     """:func:`step_clear` of ``K`` steps at once: step ``k`` moves every robot ``a[k] -> b[k]``.
 
     ``a`` and ``b`` are ``(K, m, 2)``; the same exact tests, in one
     clearance call and chunked closest-approach calls.  Steps not tested
-    by ``deadline`` count as not clear.
+    by ``deadline`` count as not clear.  ``via`` (``(K, m, 2)``, optional):
+    points whose moves ``a -> via`` and ``via -> b`` are clear of the
+    obstacles (two steps being joined).  Where ``a``, ``via`` and ``b`` lie
+    on one axis-parallel line (or ``via`` equals an end), exactly, with no
+    rounding, the move ``a -> b`` lies in the union of those two, so its
+    obstacle test is left out (the robots are still tested).
     """
     n_steps, m = a.shape[:2]
     kk, rr = np.nonzero(np.any(a != b, axis=2))  # every moving robot of every step
@@ -54,7 +60,13 @@ def steps_clear(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float 
     if len(kk) == 0:
         return ~bad
     sa, sb = a[kk, rr], b[kk, rr]
-    bad[kk[~problem.env.segments_clear(sa, sb, problem.clearance)]] = True
+    test = np.ones(len(kk), bool)
+    if via is not None:
+        u, v = via[kk, rr] - sa, sb - via[kk, rr]
+        still = (u == 0).all(axis=1) | (v == 0).all(axis=1)
+        test = ~(still | ((u[:, 0] == 0) & (v[:, 0] == 0)) | ((u[:, 1] == 0) & (v[:, 1] == 0)))
+    if test.any():
+        bad[kk[test][~problem.env.segments_clear(sa[test], sb[test], problem.clearance)]] = True
     if m > 1:
         chunk = max(1, _CHUNK // m)
         for c0 in range(0, len(kk), chunk):

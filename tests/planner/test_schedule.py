@@ -170,6 +170,55 @@ def test_steps_clear_is_step_clear_for_every_step(seed, m):
     assert fast.tolist() == [step_clear(problem, a[j], b[j]) for j in range(k)]
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**31), st.integers(1, 9))
+def test_steps_clear_through_a_clear_middle_point(seed, m):
+    """Joined steps tested with their middle waypoints (``via``) give what testing every move
+    gives, where the two pieces are clear: moves along an axis through, short of or back from
+    the middle, moves that turn there (which may cut a corner through an obstacle) and moves
+    in one piece only."""
+    from planner.schedule import steps_clear
+
+    problem, rng = _random_problem(seed, m)
+    k = 16
+    a = np.repeat(problem.start[None], k, axis=0)
+    mid, b = a.copy(), a.copy()
+    for j in range(k):
+        for r in range(m):
+            kind = rng.integers(4)
+            d = rng.normal(size=2) * rng.uniform(0.5, 6.0)
+            if kind == 0:  # along an axis: the middle before, on or past the end
+                d[rng.integers(2)] = 0.0
+                mid[j, r], b[j, r] = a[j, r] + rng.uniform(-1, 2) * d, a[j, r] + d
+            elif kind == 1:  # a turn at the middle
+                mid[j, r], b[j, r] = a[j, r] + d, a[j, r] + d + rng.normal(size=2) * 3.0
+            elif kind == 2:  # only the second piece moves
+                b[j, r] = a[j, r] + d
+    ok1 = problem.env.segments_clear(a.reshape(-1, 2), mid.reshape(-1, 2), problem.clearance)
+    ok2 = problem.env.segments_clear(mid.reshape(-1, 2), b.reshape(-1, 2), problem.clearance)
+    keep = (ok1 & ok2).reshape(k, m).all(axis=1)  # only joins whose pieces are clear qualify
+    full = steps_clear(problem, a, b)
+    fast = steps_clear(problem, a, b, via=mid)
+    assert fast[keep].tolist() == full[keep].tolist()
+
+
+def test_steps_clear_through_a_middle_point_still_tests_a_cut_corner():
+    """Negative control: an L-shaped pair of clear pieces round a box corner joins into a
+    diagonal through the box, which the test with ``via`` still refuses."""
+    from planner.schedule import steps_clear
+
+    box = Polygon(np.array([[4.0, 4.0], [8.0, 4.0], [8.0, 8.0], [4.0, 8.0]]))
+    a, mid, b = np.array([[[2.0, 6.0]]]), np.array([[[2.0, 10.0]]]), np.array([[[10.0, 10.0]]])
+    a2, b2 = np.array([[[2.0, 10.0]]]), np.array([[[6.0, 10.0]]])
+    problem = Problem(20, 20, (box,), 1.0, 0.1, a[0], b[0])
+    assert problem.env.segments_clear(a[0], mid[0], problem.clearance).all()
+    assert problem.env.segments_clear(mid[0], b[0], problem.clearance).all()
+    assert not steps_clear(problem, a, b, via=mid)[0]
+    # a straight-on join of clear pieces is clear, with or without the shortcut
+    assert steps_clear(problem, a2, b2, via=np.array([[[4.0, 10.0]]]))[0]
+    assert steps_clear(problem, a2, b2)[0]
+
+
 def _merge_moves_one_by_one(problem, w):
     """merge_moves as a plain greedy loop, one clearance test at a time (the reference)."""
     from planner.geometry import point_segment_distance
