@@ -67,7 +67,7 @@ from .problem import Problem
 from .tswap import tswap
 
 __all__ = ["FLOW_BUDGET_S", "FLOW_MIN_ROBOTS", "GRID_BUDGET_S", "GRID_TRIES", "build_grid", "detect_grid", "find_grid",
-           "grid_plan", "grid_waypoints", "map_grid", "step_separated"]
+           "grid_plan", "grid_waypoints", "map_grid", "step_separated", "try_work"]
 
 
 
@@ -153,9 +153,28 @@ def step_separated(problem: Problem, a: np.ndarray, b: np.ndarray, reach: float)
 
 #: Routings tried by :func:`grid_plan` at most (the first two break ties by distance only,
 #: the others also at random; the two assignments take turns), within :data:`GRID_BUDGET_S`
-#: seconds.
+#: seconds of estimated work (:func:`try_work`).
 GRID_TRIES = 12
 GRID_BUDGET_S = 1.5
+#: The work model of a try [s]: TSWAP's distance fields (first try only; later tries share
+#: them) per robot and grid vertex, and the routing with its merge and checks per robot and
+#: time step.  Measured on 30 MovingAI maps at 100 to 400 robots (2-core machine): fields
+#: 0.1-0.15 us, later tries 2.5-9 us per robot-step (orz900d at 400: 1.0 s a try).
+FIELD_S_PER_ROBOT_VERTEX = 0.15e-6
+TRY_S_PER_ROBOT_STEP = 6e-6
+#: Tries estimated to cost more than this [s] are not repeated for an assignment whose first
+#: try with random tie-breaks routed exactly as its plain one (big sparse maps, where ties
+#: seldom meet); cheaper ones run their full count (on room-32-32-4 at 50 robots the first
+#: random try routes as the plain one and a later one is 5 % shorter).
+SETTLE_WORK_S = 0.1
+
+
+def try_work(m: int, vertices: int, steps: int, first: bool) -> float:
+    """Estimated seconds of one grid try (see :data:`TRY_S_PER_ROBOT_STEP`): a count, not a
+    clock, so that the number of tries, and with it the plan, is the same on every machine
+    and under any load."""
+    return (FIELD_S_PER_ROBOT_VERTEX * m * vertices if first else 0.0) + TRY_S_PER_ROBOT_STEP * m * steps
+
 #: Seconds the shortest-routing search (:mod:`planner.gridflow`) may take at most.
 FLOW_BUDGET_S = 20.0
 #: Fewer robots than this leave TSWAP's routing as it is (within a step or two of the shortest).
@@ -179,31 +198,43 @@ def route_budget(m: int) -> float:
 def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
     """``(merged waypoints, raw time steps)`` of the shortest of a few grid routings, or
     ``None``.  Each try is routed (:func:`grid_waypoints`), merged
-    (:func:`planner.merge.merge_steps`) and timed; tries go on while they fit in
-    :data:`GRID_BUDGET_S` and before ``deadline``."""
+    (:func:`planner.merge.merge_steps`) and timed.  Tries go on while their estimated work
+    (:func:`try_work`, not the clock) fits in :data:`GRID_BUDGET_S`, and before
+    ``deadline``.  An assignment whose first try with random tie-breaks routes exactly as
+    its try without them is not tried again when its tries are costly (:data:`SETTLE_WORK_S`)."""
     from .merge import merge_steps
     from .timing import _drop_idle, _makespan
 
     grid = detect_grid(problem) if grid is None else grid
     if grid is None:
         return None
-    t0 = time.perf_counter()
     if rng is None:
         raise ValueError("rng: the grid stage draws its tie-breaks from the run's generator; pass it")
     best = None
     memo: dict = {}  # what the tries share: the snapping rounds, TSWAP's fields and assignments
+    work, last, plain, settled = 0.0, 0, {}, set()  # plain: each assignment's tie-free routing
     for k in range(GRID_TRIES):
-        now = time.perf_counter()
-        if k and (now > deadline or (now - t0) * (k + 1) / k > GRID_BUDGET_S):
+        kind = k % 2  # even tries assign the targets for the least longest route, odd ones by
+        # the fewest squares alone (more robots on long routes, but at times less crowding:
+        # room-32-32-4 at 100 robots, 14 steps against 15); from the third on, ties are
+        # broken at random
+        if k and (time.perf_counter() > deadline or work + last > GRID_BUDGET_S or len(settled) == 2):
             break
-        # even tries assign the targets for the least longest route, odd ones by the fewest
-        # squares alone (more robots on long routes, but at times less crowding: room-32-32-4
-        # at 100 robots, 14 steps against 15); from the third on, ties are broken at random
-        raw = grid_waypoints(problem, deadline, grid, None if k < 2 else rng, bottleneck=k % 2 == 0, memo=memo)
+        if kind in settled:
+            continue
+        raw = grid_waypoints(problem, deadline, grid, None if k < 2 else rng, bottleneck=kind == 0, memo=memo)
         if raw is None:
             if k == 0:
                 return None
+            work += last  # a failed try counted as the last one that routed
             continue
+        last = try_work(problem.m, 0, len(raw) - 1, False)
+        work += try_work(problem.m, _graph(problem, grid)[0].n, len(raw) - 1, k == 0)
+        if k < 2:
+            plain[kind] = raw
+        elif (last > SETTLE_WORK_S and len(raw) == len(plain.get(kind, ()))
+              and all(np.array_equal(x, y) for x, y in zip(raw, plain[kind]))):
+            settled.add(kind)
         w = merge_steps(problem, _drop_idle(raw), deadline)
         span = _makespan(problem, w)
         if best is None or span < best[2]:

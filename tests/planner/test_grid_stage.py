@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from planner import Plan, PlannerParams, Polygon, Problem, check_plan, plan
 from planner.bounds import lower_bounds
@@ -281,3 +282,70 @@ def test_a_sparse_map_is_routed_near_the_obstacle_respecting_bound():
     assert stats.extra.get("direct") == "grid"
     check_plan(p, result)
     assert result.makespan <= 2.0 * geo_lower_bound(p)
+
+
+def test_grid_tries_are_counted_by_work_not_by_the_clock(monkeypatch):
+    """The number of grid tries, and the plan, do not depend on how fast the clock runs: on a
+    machine a hundred times slower (a clock that jumps half a second at every reading) the
+    same tries run and the same plan comes out.  A clock-budgeted loop would stop after the
+    first try here (room-32-32-4 at 100 robots runs twelve)."""
+    import planner.gridstage as gs
+    from bench.maps import map_problem
+
+    def run(clock):
+        problem = map_problem("room-32-32-4", 100, 0)
+        calls = []
+        real = gs.grid_waypoints
+
+        def spy(*args, **kwargs):
+            calls.append(kwargs.get("rng") is not None or (len(args) > 3 and args[3] is not None))
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(gs, "grid_waypoints", spy)
+        monkeypatch.setattr(gs, "FLOW_MIN_ROBOTS", 10**9)  # the tries only
+        if clock is not None:
+            monkeypatch.setattr(gs, "time", clock)
+        out = gs.grid_plan(problem, 1e18, gs.find_grid(problem)[0], np.random.default_rng(0))
+        monkeypatch.undo()
+        return calls, out
+
+    class Slow:
+        now = 0.0
+
+        @classmethod
+        def perf_counter(cls):
+            cls.now += 0.5
+            return cls.now
+
+    calls, out = run(None)
+    slow_calls, slow_out = run(Slow)
+    assert len(calls) == gs.GRID_TRIES  # ties there change the routing: every try runs
+    assert slow_calls == calls
+    assert np.array_equal(slow_out[0], out[0]) and slow_out[1] == out[1]
+
+
+def test_grid_tries_stop_when_the_tie_breaks_change_nothing():
+    """On den312d at 100 robots each assignment's first random try routes as its plain one; with
+    tries counted as costly (:data:`SETTLE_WORK_S` at 0) no more run, and as they are (cheap)
+    all twelve do."""
+    import planner.gridstage as gs
+    from bench.maps import map_problem
+
+    problem = map_problem("den312d", 100, 0)
+    grid = gs.find_grid(problem)[0]
+    calls = []
+    real = gs.grid_waypoints
+    counts = []
+    for settle in (0.0, gs.SETTLE_WORK_S):
+        calls.clear()
+        try:
+            gs.grid_waypoints = lambda *a, **k: calls.append(1) or real(*a, **k)
+            saved = gs.FLOW_MIN_ROBOTS, gs.SETTLE_WORK_S
+            gs.FLOW_MIN_ROBOTS, gs.SETTLE_WORK_S = 10**9, settle
+            gs.grid_plan(problem, 1e18, grid, np.random.default_rng(0))
+        finally:
+            gs.grid_waypoints = real
+            gs.FLOW_MIN_ROBOTS, gs.SETTLE_WORK_S = saved
+        counts.append(len(calls))
+    assert counts == [4, gs.GRID_TRIES]
+    assert gs.try_work(100, 10_000, 50, True) == pytest.approx(0.15e-6 * 1e6 + 6e-6 * 5000)
