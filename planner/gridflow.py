@@ -197,6 +197,8 @@ def _solve(lat: Lattice, sv, gv, horizon: int, turns: bool, budget: float):
     if prog is None:
         return "too big"
     a, lo, hi, cost, (t_, v_, k_, h_) = prog
+    if len(cost) == 0:
+        return None  # no move can be made at all: no routing
     res = milp(cost, integrality=np.ones(len(cost)), bounds=(0, 1), constraints=LinearConstraint(a, lo, hi),
                options={"time_limit": max(budget, 0.05), "disp": False, "presolve": PRESOLVE})
     if res.status == 2:  # infeasible

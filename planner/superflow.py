@@ -155,6 +155,8 @@ def _solve(lat, ij, vid, sv, gv, kinds, sep_c, budget):
     if prog is None:
         return "too big"
     a, lo, hi, (t_, v_, h_) = prog
+    if len(t_) == 0:
+        return None  # no move can be made at all: no routing
     res = milp(np.zeros(len(t_)), integrality=np.ones(len(t_)), bounds=(0, 1),
                constraints=LinearConstraint(a, lo, hi), options={"time_limit": max(budget, 0.05), "disp": False})
     if res.status == 2:

@@ -103,3 +103,16 @@ def test_grid_plan_uses_two_cell_steps_and_checks():
 def test_kinds_split_the_single_steps_between_the_ends():
     assert kinds_of(3, 2) == [1, 2, 2, 1, 1]
     assert kinds_of(0, 3) == [2, 2, 2]
+
+
+def test_a_program_with_no_move_at_all_is_no_routing():
+    """A robot one diagonal away from its target, to beat two one-cell steps: the only
+    candidate, one step of two cells, has no move that gets there (every variable pruned),
+    which is no routing rather than an error from the solver."""
+    p = _cells_problem(np.zeros((3, 3), bool), [(1, 0)], [(0, 1)])
+    lat, ij, vid = build_grid(p, *detect_grid(p))
+    sv = np.array([vid[tuple(k)] for k in np.round((p.start - 0.5 * CELL) / CELL).astype(int)])
+    gv = np.array([vid[tuple(k)] for k in np.round((p.target - 0.5 * CELL) / CELL).astype(int)])
+    t1, t2 = (step_duration(d, p.max_speed, p.max_accel) for d in (CELL, 2 * CELL))
+    assert super_route(lat, ij, vid, sv, gv, SEP_C, t1, t2, 2 * t1, math.inf, 10.0) is None
+    assert super_route(lat, ij, vid, sv, gv, SEP_C, t1, t2, 2 * t1 + 1e-6 + t2, math.inf, 10.0) is not None
