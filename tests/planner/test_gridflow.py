@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from planner import Plan, check_plan
-from planner.gridflow import _flow_value, flow_route, relaxed_horizon
+from planner.gridflow import _flow_value, flow_route, relaxed_horizon, tail_route
 from planner.gridstage import build_grid, detect_grid, grid_plan, grid_waypoints, step_separated
 from planner.tswap import tswap
 from planner.validate import PlanInvalid
@@ -118,8 +118,9 @@ def test_grid_plan_keeps_the_shorter_routing_and_the_deadline():
 
 @pytest.mark.parametrize(("m", "searched"), [(50, False), (200, True)])
 def test_the_routing_searches_run_only_on_a_crowded_grid(monkeypatch, m, searched):
-    """room-32-32-4 has 682 free cells: 50 robots take 7 % (below FLOW_MIN_OCCUPANCY, TSWAP's
-    routing is kept as it is), 200 take 29 % (both searches run)."""
+    """room-32-32-4 has 682 free cells: 50 robots take 7 % (below FLOW_MIN_OCCUPANCY, only the
+    end of TSWAP's routing is routed again), 200 take 29 % (both searches run, and as here
+    neither finds a routing, the end of TSWAP's is routed again too)."""
     import planner.gridflow
     import planner.superflow
     from bench.maps import map_problem
@@ -128,8 +129,39 @@ def test_the_routing_searches_run_only_on_a_crowded_grid(monkeypatch, m, searche
     calls = []
     monkeypatch.setattr(planner.gridflow, "flow_route", lambda *a, **k: calls.append("flow"))
     monkeypatch.setattr(planner.superflow, "super_route", lambda *a, **k: calls.append("twos"))
+    monkeypatch.setattr(planner.gridflow, "tail_route", lambda *a, **k: calls.append("tail"))
     problem = map_problem("room-32-32-4", m, 0)
     assert (m >= FLOW_MIN_OCCUPANCY * 682) == searched
     assert grid_plan(problem, time.perf_counter() + 30, rng=np.random.default_rng(0)) is not None
-    assert calls == (["flow", "twos"] if searched else [])
+    assert calls == (["flow", "twos", "tail"] if searched else ["tail"])
     assert route_budget(100) == pytest.approx(1.0 + 0.5 * (100 / 150) ** 2) and route_budget(400) == pytest.approx(16.5)
+
+
+def test_the_end_of_a_routing_is_routed_again_shorter():
+    """Routings that dawdle: the robots still moving after a step are routed anew among the
+    ones that stay, legally, to the same vertices, in fewer steps; a shortest routing is
+    left alone."""
+    blocked = np.zeros((5, 9), bool)
+    blocked[:, 4] = True
+    blocked[2, 4] = False  # a door in the middle wall
+    p = _cells_problem(blocked, [(0, 0), (4, 0), (2, 8), (0, 8)], [(2, 2), (0, 6), (4, 8), (0, 8)])
+    lat, sv, gv = _graph(p)
+    short = flow_route(lat, sv, gv, math.inf, below=30, budget=10)
+    # everybody waits three steps first: only a tail with all four robots is shorter
+    slow = [np.asarray(sv)] * 3 + list(short)
+    got = tail_route(lat, np.stack([sv, *slow]), math.inf, budget=10.0, first_cap=1)
+    assert got is not None and len(got) == len(short)
+    _legal(lat, sv, got)
+    assert sorted(got[-1]) == sorted(gv)
+    # one robot leaves its target and comes back at the end: the tail of that one robot goes
+    end = short[-1]
+    i = 3  # the robot on (0, 8), which never has to move
+    away = next(u for u in lat.nbr[end[i]] if u >= 0 and u not in end)
+    detour = list(short) + [end.copy(), end.copy()]
+    detour[-2][i] = away
+    _legal(lat, sv, detour)
+    got = tail_route(lat, np.stack([sv, *detour]), math.inf, budget=10.0, first_cap=1)
+    assert got is not None and len(got) <= len(short)
+    _legal(lat, sv, got)
+    assert sorted(got[-1]) == sorted(gv)
+    assert tail_route(lat, np.stack([sv, *short]), math.inf, budget=10.0, first_cap=1) is None
