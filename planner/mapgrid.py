@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 
-from .grid import _in_rectangles
+from .grid import Lattice, _in_rectangles, grid_graph
 from .problem import Problem
 
-__all__ = ["Lines", "door_lines", "map_grid"]
+__all__ = ["Lines", "build_grid", "detect_grid", "door_lines", "find_grid", "map_grid"]
 
 _TOL = 1e-9
 _MAX_VERTICES = 1_100_000  # grid points the grid stage builds at most
@@ -208,3 +208,69 @@ def _pick(clear: np.ndarray, lo: int, hi: int, on: np.ndarray | None = None) -> 
         out.append(k)
         k = int(prev[k])
     return np.asarray(out[::-1], int)
+
+
+def detect_grid(problem: Problem) -> tuple[np.ndarray, float] | None:
+    """``(offset (2,), spacing c)`` of a square grid holding every start and target with
+    ``c >= separation``, or ``None``."""
+    pts = np.concatenate([problem.start, problem.target])
+    if len(pts) < 2:
+        return None
+    tol = _TOL * max(problem.width, problem.height, 1.0)
+    gaps = []
+    for axis in range(2):
+        u = np.unique(pts[:, axis])
+        d = np.diff(u)
+        d = d[d > tol]
+        if len(d):
+            gaps.append(d.min())
+    if not gaps:
+        return None
+    base = min(gaps)
+    sep = problem.separation
+    for k in range(1, 5):
+        c = base / k
+        if c < sep - tol:
+            return None
+        origin = pts.min(axis=0)
+        idx = np.round((pts - origin) / c)
+        if np.abs(origin + c * idx - pts).max() <= tol:
+            return np.mod(origin, c), float(c)
+    return None
+
+
+def find_grid(problem: Problem) -> tuple[tuple[np.ndarray, float], bool] | None:
+    """``(grid, snapped)``: the grid holding every start and target (:func:`detect_grid`,
+    ``snapped`` false), else the cell centres of a map (:func:`map_grid`, ``snapped``
+    true: the placements are snapped onto it), else ``None``."""
+    grid = detect_grid(problem)
+    if grid is not None:
+        return grid, False
+    grid = map_grid(problem)
+    return None if grid is None else (grid, True)
+
+
+def build_grid(problem: Problem, offset, c: float | None = None) -> tuple[Lattice, np.ndarray, np.ndarray] | None:
+    """The grid graph as a :class:`planner.grid.Lattice` (neighbour slots: right, up,
+    left, down), with the grid index ``(i, j)`` of every vertex and the ``(nx, ny)``
+    table of vertex ids (-1: not a vertex); ``None`` when the grid is too big.
+    ``offset`` may be :class:`Lines` (``c`` unused)."""
+    if isinstance(offset, Lines):
+        nx, ny = len(offset.xs), len(offset.ys)
+        if nx * ny > _MAX_VERTICES:
+            return None
+        gi, gj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+        pts = np.stack([offset.xs[gi.ravel()], offset.ys[gj.ravel()]], axis=1)
+        lattice, ok, vid = grid_graph(problem, pts, nx, ny, offset.gap)
+        return lattice, np.stack([gi.ravel(), gj.ravel()], axis=1)[ok], vid
+    ox, oy = float(offset[0]), float(offset[1])
+    i0, i1 = math.ceil(-ox / c - _TOL), math.floor((problem.width - ox) / c + _TOL)
+    j0, j1 = math.ceil(-oy / c - _TOL), math.floor((problem.height - oy) / c + _TOL)
+    nx, ny = i1 - i0 + 1, j1 - j0 + 1
+    if nx <= 0 or ny <= 0 or nx * ny > _MAX_VERTICES:
+        return None
+    gi, gj = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1), indexing="ij")
+    pts = np.stack([ox + c * gi.ravel(), oy + c * gj.ravel()], axis=1)
+    lattice, ok, vid = grid_graph(problem, pts, nx, ny, c)
+    ij = np.stack([gi.ravel(), gj.ravel()], axis=1)[ok]
+    return lattice, ij - np.array([i0, j0]), vid
