@@ -335,7 +335,8 @@ def tail_route(lat: Lattice, where: np.ndarray, deadline: float, turns: bool = F
     while time.perf_counter() < t_end - 0.2 and misses < TAIL_MISSES:
         steps = len(w) - 1
         mv = w[1:] != w[:-1]
-        count = np.array([mv[t:].any(axis=0).sum() for t in range(steps)])  # robots moving after t
+        last = np.where(mv.any(axis=0), steps - 1 - np.argmax(mv[::-1], axis=0), -1)  # each robot's last move
+        count = np.cumsum(np.bincount(last[last >= 0], minlength=steps)[::-1])[::-1]  # robots moving from t on
         fits = np.nonzero(count <= cap)[0]
         t0 = int(fits[0]) if len(fits) else steps
         if steps - t0 < 2:
@@ -343,7 +344,7 @@ def tail_route(lat: Lattice, where: np.ndarray, deadline: float, turns: bool = F
                 break
             cap = int(cap * 1.5) + 1
             continue
-        movers = np.nonzero(mv[t0:].any(axis=0))[0]
+        movers = np.nonzero(last >= t0)[0]
         stay = w[t0, np.setdiff1d(np.arange(m), movers)]
         nbr = lat.nbr.copy()
         nbr[stay] = -1
