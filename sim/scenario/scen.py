@@ -36,7 +36,7 @@ def read_scen(path: Path, count: int, grid: Grid | None, goal: bool) -> np.ndarr
     first = lines[0].strip() if lines else ""
     body = 1
     if not re.fullmatch(r"version\s+1(\.0)?", first, re.IGNORECASE):
-        if len(first.split("\t") if "\t" in first else first.split()) != 9:
+        if len(_fields(first)) != 9:
             raise MapError(f"{name} line 1: expected 'version 1' (a MovingAI .scen file), got {first[:30]!r}")
         body = 0  # no version line (older files): the agents start on line 1
     out = np.zeros((count, 2), np.int64)
@@ -47,7 +47,7 @@ def read_scen(path: Path, count: int, grid: Grid | None, goal: bool) -> np.ndarr
         line = raw.rstrip("\r")
         if not line.strip():
             continue
-        parts = line.split("\t") if "\t" in line else line.split()
+        parts = _fields(line)
         if len(parts) != 9:
             raise MapError(f"{name} line {i}: has {len(parts)} fields, expected 9 (bucket, map, width, height, "
                            "start_x, start_y, goal_x, goal_y, optimal_length)")
@@ -75,3 +75,8 @@ def read_scen(path: Path, count: int, grid: Grid | None, goal: bool) -> np.ndarr
     if k < count:
         raise MapError(f"{name}: holds {k} agents, fewer than the count {count} asked for", "count")
     return out
+
+
+def _fields(line: str) -> list[str]:
+    """The fields of one agent line: tab-separated, or by any whitespace when it has no tab."""
+    return line.split("\t") if "\t" in line else line.split()
