@@ -13,13 +13,16 @@ Formats
   ROS map_server: a YAML mapping of ``image`` (PGM or PNG, relative to the
   YAML), ``resolution``, ``origin``, ``occupied_thresh``, ``free_thresh``,
   ``negate`` and optional ``mode`` (``trinary`` or ``scale``); other keys are
-  ignored, as map_server ignores them.  A colour pixel's grey is the mean of
-  its channels, as in map_server.  A pixel ``p``
-  is occupied when ``(255 - p) / 255 > occupied_thresh`` (``p / 255`` with
+  ignored, as map_server ignores them.  A pixel's grey ``p`` is the mean of
+  its red, green and blue, as in map_server; in trinary mode (the default)
+  an image's alpha is averaged in too, and in scale mode a pixel that is not
+  fully opaque is unknown (both as in Nav2's map_server).  A pixel is
+  occupied when ``(255 - p) / 255 > occupied_thresh`` (``p / 255`` with
   ``negate``), free when it is below ``free_thresh``; unknown pixels count
   as blocked (free space is never invented).
-  Plain PNG or PGM: a pixel whose grey value is below ``threshold``
-  (default 128) is blocked.
+  Plain PNG or PGM: a pixel whose grey value (luminance, over a white page
+  where the image is transparent) is below ``threshold`` (default 128) is
+  blocked.  16-bit images are scaled from 0..65535.
 
 Caps (measured; see tests/sim/test_maps.py)
   :data:`MAX_SIDE_CELLS` cells a side and :data:`MAX_CELLS` cells in all
@@ -110,7 +113,7 @@ def read_grid(path: Path, threshold: float | None = None) -> Grid:
             raise MapError("applies to PNG and PGM images only (a ROS map has occupied_thresh)", "threshold")
         return _read_ros(path)
     if suffix in _IMAGE_SUFFIXES:
-        grey = _read_grey(path)
+        grey, _ = _read_grey(path)
         return Grid(grey < (128.0 if threshold is None else threshold))
     raise MapError(f"{_name(path)}: unknown map format {suffix or '(no suffix)'!r} "
                    "(known: .map, .yaml/.yml for ROS map_server, .png, .pgm)")
@@ -266,9 +269,12 @@ def _read_ros(path: Path) -> Grid:
     img = resolve(image, path.parent)
     if img.suffix.lower() not in _IMAGE_SUFFIXES:
         raise MapError(f"{name}: image {_name(img)} must be a PGM or PNG file")
-    grey = _read_grey(img, f"{name}: image {_name(img)}", average=True)
+    grey, translucent = _read_grey(img, f"{name}: image {_name(img)}", ros_mode=mode)
     p = grey / 255.0 if negate else (255.0 - grey) / 255.0
-    return Grid(~(p < free) | (p > occ), cell=res, origin=(ox, oy))  # unknown (between the thresholds) is blocked
+    blocked = ~(p < free) | (p > occ)  # unknown (between the thresholds) is blocked
+    if mode == "scale" and translucent is not None:
+        blocked |= translucent  # scale mode: a pixel not fully opaque is unknown
+    return Grid(blocked, cell=res, origin=(ox, oy))
 
 
 def _ros_number(value, where: str, lo: float, hi: float) -> float:
@@ -281,11 +287,19 @@ def _ros_number(value, where: str, lo: float, hi: float) -> float:
 # images and bounded reads
 
 
-def _read_grey(path: Path, where: str | None = None, average: bool = False) -> np.ndarray:
-    """Grey values 0..255 ``(rows, cols)`` float, the size checked from the header first.
+def _read_grey(path: Path, where: str | None = None, ros_mode: str | None = None
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Grey values 0..255 ``(rows, cols)`` float, the size checked from the header first,
+    and the pixels that are not fully opaque (``None`` when the image has no alpha).
 
-    ``average``: a colour pixel's grey is the mean of its red, green and blue
-    (as map_server reads a colour map) rather than its luminance.
+    ``ros_mode`` ``None``: a plain image, seen as on a white page: its luminance
+    (Pillow's ``L``) after compositing over white, so a transparent background is
+    white.  ``"trinary"``: the mean of red, green and blue, and of alpha too when
+    the image has one (map_server's trinary mode, ROS 1 and Nav2 alike).
+    ``"scale"``: the mean of red, green and blue (alpha is kept out, and every
+    pixel not fully opaque is unknown, as in Nav2's scale mode).  A 16-bit image
+    (a PGM of maxval over 255, a 16-bit PNG) is scaled from its full range
+    0..65535 (Pillow scales a PGM's maxval to it), whatever values it holds.
     """
     import io
 
@@ -300,13 +314,24 @@ def _read_grey(path: Path, where: str | None = None, average: bool = False) -> n
                 raise MapError(f"{where}: {cols} x {rows} pixels is larger than {MAX_SIDE_CELLS} x "
                                f"{MAX_SIDE_CELLS}, the largest map image")
             _check_cells(rows, cols, where)
-            if im.mode.startswith("I"):
+            if im.mode.startswith("I"):  # 16-bit grey (or 32-bit from a mislabelled file): no alpha
                 arr = np.asarray(im, np.float64)
-                top = 65535.0 if arr.max(initial=0) > 255 else 255.0
-                return arr * (255.0 / top)
-            if average and im.mode not in ("1", "L", "LA"):
-                return np.asarray(im.convert("RGB"), np.float64).mean(axis=2)
-            return np.asarray(im.convert("L"), np.float64)
+                return np.clip(arr * (255.0 / 65535.0), 0.0, 255.0), None
+            has_alpha = im.mode in _ALPHA_MODES or "transparency" in im.info
+            if not has_alpha:
+                if ros_mode is None:
+                    return np.asarray(im.convert("L"), np.float64), None
+                return np.asarray(im.convert("RGB"), np.float64).mean(axis=2), None
+            rgba = im.convert("RGBA")
+            alpha = np.asarray(rgba.getchannel("A"), np.float64)
+            translucent = alpha < 255.0
+            if ros_mode is None:
+                white = Image.new("RGBA", rgba.size, (255, 255, 255, 255))
+                return np.asarray(Image.alpha_composite(white, rgba).convert("L"), np.float64), translucent
+            arr = np.asarray(rgba, np.float64)
+            if ros_mode == "trinary":
+                return arr.mean(axis=2), translucent
+            return arr[:, :, :3].mean(axis=2), translucent
     except MapError:
         raise
     except Image.DecompressionBombError:  # Pillow's own size check, from the header, before ours
@@ -315,6 +340,9 @@ def _read_grey(path: Path, where: str | None = None, average: bool = False) -> n
     except Exception as exc:  # noqa: BLE001 - any decoder failure on a hostile file is a bad input
         why = re.sub(r"\s*<[^<>]* at 0x[0-9a-fA-F]+>", "", str(exc))[:60] or type(exc).__name__
         raise MapError(f"{where}: is not a readable PNG or PGM image ({why})") from None
+
+
+_ALPHA_MODES = frozenset({"LA", "La", "PA", "RGBA", "RGBa"})
 
 
 def _text(path: Path, max_bytes: int = MAX_MAP_BYTES) -> str:

@@ -381,3 +381,61 @@ def test_scattered_robots_on_a_benchmark_map_plan_on_its_cells(tmp_path, capsys)
     stats = Plan.load(out).stats
     assert stats.extra["direct"] == "grid"
     assert stats.makespan_s <= 2.5 * stats.makespan_lower_bound_geo_s
+
+
+def _ros_png(tmp_path, im: Image.Image, mode: str = "trinary") -> Grid:
+    im.save(tmp_path / "m.png")
+    (tmp_path / "m.yaml").write_text(f"image: m.png\nmode: {mode}\nresolution: 0.5\norigin: [0, 0, 0]\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.25\nnegate: 0\n")
+    return read_grid(tmp_path / "m.yaml")
+
+
+def test_ros_alpha_is_averaged_in_trinary_mode_and_unknown_in_scale_mode(tmp_path):
+    """map_server's rules for an image with alpha: trinary averages it in with red, green
+    and blue; scale keeps it out and calls every pixel that is not fully opaque unknown."""
+    rgba = np.zeros((1, 4, 4), np.uint8)
+    rgba[0, 0] = (0, 0, 0, 255)        # opaque black: mean 63.75 -> occupancy 0.75, occupied
+    rgba[0, 1] = (60, 60, 60, 255)     # mean 108.75 -> 0.57 unknown (its RGB mean 60 -> 0.76 would be occupied)
+    rgba[0, 2] = (254, 254, 254, 0)    # transparent white: mean 190.5 -> 0.25, not below free: unknown
+    rgba[0, 3] = (254, 254, 254, 255)  # opaque white: free
+    im = Image.fromarray(rgba, "RGBA")
+    assert _ros_png(tmp_path, im).blocked.tolist() == [[True, True, True, False]]
+    assert _ros_png(tmp_path, im, "scale").blocked.tolist() == [[True, True, True, False]]
+    rgba[0, 2] = (254, 254, 254, 254)  # almost opaque white: free in trinary, unknown in scale
+    rgba[0, 1] = (110, 110, 110, 255)  # RGB mean 110 -> 0.57: unknown either way
+    im = Image.fromarray(rgba, "RGBA")
+    assert _ros_png(tmp_path, im).blocked.tolist() == [[True, True, False, False]]
+    assert _ros_png(tmp_path, im, "scale").blocked.tolist() == [[True, True, True, False]]
+    # grey with alpha reads as the same RGBA, (3 L + A) / 4 in trinary mode: opaque grey 172
+    # is 192.75 there (occupancy 0.244, free) and 172 in scale mode (0.325, unknown)
+    la = Image.fromarray(np.array([[[172, 255], [0, 0], [254, 255]]], np.uint8), "LA")
+    assert _ros_png(tmp_path, la).blocked.tolist() == [[False, True, False]]
+    assert _ros_png(tmp_path, la, "scale").blocked.tolist() == [[True, True, False]]
+
+
+def test_plain_png_transparency_is_a_white_page(tmp_path):
+    rgba = np.zeros((1, 3, 4), np.uint8)
+    rgba[0, 0] = (0, 0, 0, 255)      # opaque black: blocked
+    rgba[0, 1] = (0, 0, 0, 0)        # transparent: the page shows, free
+    rgba[0, 2] = (0, 0, 0, 200)      # mostly opaque black: 255 * 55 / 255 = 55, blocked
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "m.png")
+    assert read_grid(tmp_path / "m.png").blocked.tolist() == [[True, False, True]]
+    # a palette image with a transparent index reads the same way
+    p = Image.fromarray(np.array([[0, 1, 2]], np.uint8), "P")
+    p.putpalette([0, 0, 0, 255, 255, 255, 10, 10, 10])
+    p.info["transparency"] = 2
+    p.save(tmp_path / "p.png", transparency=2)
+    assert read_grid(tmp_path / "p.png").blocked.tolist() == [[True, False, False]]
+
+
+@pytest.mark.parametrize("fmt", ["pgm", "png"])
+def test_16_bit_images_use_their_full_range(tmp_path, fmt):
+    """A 16-bit map whose values are all small is dark, not a bright 8-bit map."""
+    for values, blocked in ([[0, 200, 40000, 65535]], [True, True, False, False]), ([[0, 200, 255]], [True] * 3):
+        values = np.array(values, np.uint16)
+        if fmt == "pgm":
+            header = b"P5 %d 1 65535\n" % values.shape[1]
+            (tmp_path / "m.pgm").write_bytes(header + values.astype(">u2").tobytes())
+        else:
+            Image.fromarray(values).save(tmp_path / "m.png")
+        assert read_grid(tmp_path / f"m.{fmt}").blocked.tolist() == [blocked]
