@@ -309,6 +309,8 @@ def _read_grey(path: Path, where: str | None = None, ros_mode: str | None = None
     data = _bytes(path, MAX_IMAGE_BYTES, where)
     try:
         with Image.open(io.BytesIO(data)) as im:
+            if im.format not in ("PNG", "PPM"):  # PPM: Pillow's name for the PBM/PGM/PPM family
+                raise MapError(f"{where}: is a {im.format or 'unknown'} image, not a PNG or PGM (whatever its suffix)")
             cols, rows = im.size  # from the header; nothing decoded yet
             if cols > MAX_SIDE_CELLS or rows > MAX_SIDE_CELLS:
                 raise MapError(f"{where}: {cols} x {rows} pixels is larger than {MAX_SIDE_CELLS} x "

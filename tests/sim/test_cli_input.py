@@ -222,6 +222,7 @@ CORPUS = {
     "map-image-5000x5000.yaml": ("map.file", "5000 x 5000 pixels is larger than 4096 x 4096"),
     "map-image-20000x20000.yaml": ("map.file", "huge-20000x20000.png: its header declares more pixels than 4096 x 4096"),
     "map-image-garbage.yaml": ("map.file", "not-an-image.png: is not a readable PNG or PGM image (cannot identify image file)"),
+    "map-image-jpeg-as-png.yaml": ("map.file", "jpeg-named-png.png: is a JPEG image, not a PNG or PGM (whatever its suffix)"),
     "map-ros-missing-image.yaml": ("map.file", "image nothere.pgm: no such file"),
     "map-row-too-long.yaml": ("map.file", "row 2 (line 6): has 6 cells, but its header declares width 4"),
     "map-rows-fewer.yaml": ("map.file", "has 2 map rows, but its header declares height 4"),
