@@ -24,8 +24,8 @@ the shrunk ones, so it passes (the test can only admit more segments, which
 again only shortens paths).  A segment is blocked when one of its sample
 points falls in a cell of a raster that lies inside a shrunk ``O`` (a proof
 that it meets one); the rest go to shapely's robust ``intersects`` over an
-STR tree.  Corners that lie inside another shrunk ``O`` are dropped (no
-shortest path can use them).  Only segments that support the polygon at
+STR tree.  Only the corners where the union of the ``O`` is convex are graph
+vertices (:func:`_union_corners`; no shortest path bends at the others).  Only segments that support the polygon at
 each corner end (both neighbours on one side: the taut-string condition)
 are graph edges.
 
@@ -123,6 +123,45 @@ def _shrunk(poly: np.ndarray, delta: float) -> np.ndarray:
     return poly - delta * s / (1.0 + (n_in * n).sum(axis=1))[:, None]
 
 
+def _union_corners(polys: list[np.ndarray], tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The corners of the union ``U`` of the inscribed polygons where ``U`` is convex, and
+    their two neighbours along ``U``'s boundary: ``(nodes (V, 2), side (V, 2, 2))``.
+
+    A shortest path among the ``O`` bends only at a vertex of ``U``'s boundary where
+    ``U`` occupies less than a half-plane (taut string); a vertex where two edges of
+    different ``O`` cross is not one (there ``U`` occupies more), so these are corners of
+    the ``O`` themselves.  The corners left out lie inside ``U`` or where its boundary
+    is straight or turns inward: on a map of cells, most of the rectangles' corners
+    (the rectangles of a wall share edges).  Where ``U``'s boundary touches itself at a
+    point, the point is listed once per pass, each with its own neighbours."""
+    import shapely
+    from shapely.geometry.polygon import orient
+
+    groups: dict[int, list[np.ndarray]] = {}
+    for q in polys:  # built by vertex count at once (maps give thousands of rectangles)
+        groups.setdefault(len(q), []).append(q)
+    union = shapely.union_all(np.concatenate([shapely.polygons(np.stack(g)) for g in groups.values()]))
+    nodes, side = [], []
+    for part in getattr(union, "geoms", [union]):
+        if part.geom_type != "Polygon" or part.is_empty:
+            continue
+        part = orient(part, 1.0)  # the outer ring counter-clockwise, holes clockwise: U on the left
+        for ring in [part.exterior, *part.interiors]:
+            v = np.asarray(ring.coords, float)[:-1]
+            v = v[np.linalg.norm(v - np.roll(v, 1, axis=0), axis=1) > tol]
+            if len(v) < 3:
+                continue
+            prev, nxt = np.roll(v, 1, axis=0), np.roll(v, -1, axis=0)
+            a, b = v - prev, nxt - v
+            cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+            convex = cross > 1e-9 * np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
+            nodes.append(v[convex])
+            side.append(np.stack([prev[convex], nxt[convex]], axis=1))
+    if not nodes:
+        return np.zeros((0, 2)), np.zeros((0, 2, 2))
+    return np.concatenate(nodes), np.concatenate(side)
+
+
 class _World:
     """The corners, their polygon neighbours, the STR tree and raster of the shrunk
     polygons, and the corner-corner edges found so far (up to length ``reach``)."""
@@ -141,9 +180,8 @@ class _World:
         if not polys:
             self.nodes, self.side = np.zeros((0, 2)), np.zeros((0, 2, 2))
             return
-        nodes = np.concatenate(polys)
-        side = np.concatenate([np.stack([np.roll(p, 1, axis=0), np.roll(p, -1, axis=0)], axis=1) for p in polys])
         tol = 1e-9 * max(problem.width, problem.height)
+        nodes, side = _union_corners(polys, tol)
         keep = ((nodes[:, 0] >= c - tol) & (nodes[:, 0] <= problem.width - c + tol)
                 & (nodes[:, 1] >= c - tol) & (nodes[:, 1] <= problem.height - c + tol))
         keep[self.tree.query(shapely.points(nodes), predicate="intersects")[0]] = False

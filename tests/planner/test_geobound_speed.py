@@ -101,6 +101,39 @@ def test_fast_bound_equals_brute_force(seed, small, monkeypatch):
     assert b_ref >= bottleneck_distance(p.start, p.target) - 1e-9
 
 
+def _cells(seed: int, m: int = 6) -> Problem:
+    """A map of 2.4-unit cells, every blocked cell its own square (walls of squares that
+    share edges and corners, as a map file gives them), robots on free cell centres."""
+    rng = np.random.default_rng(seed)
+    nx, ny, cell = 14, 11, 2.4
+    blocked = rng.random((nx, ny)) < 0.3
+    obstacles = tuple(Polygon(np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float) * cell)
+                      for i, j in zip(*np.nonzero(blocked)))
+    free = np.argwhere(~blocked)
+    pick = free[rng.choice(len(free), 2 * m, replace=False)]
+    pts = (pick + 0.5) * cell
+    return Problem(nx * cell, ny * cell, obstacles, 1.0, 0.1, pts[:m], pts[m:])
+
+
+@pytest.mark.parametrize("small", [1000, 0])
+@pytest.mark.parametrize("seed", range(8))
+def test_union_corners_keep_the_bound_of_every_corner(seed, small, monkeypatch):
+    """On cell maps most corners lie where the union of the grown squares is flat or turns
+    inward; leaving them out of the graph keeps every distance of the all-corner reference."""
+    monkeypatch.setattr(gb, "_SMALL", small)
+    p = _cells(seed)
+    d_ref, b_ref = _reference(p)
+    d = geo_distances(_fresh(p))
+    fin = np.isfinite(d_ref)
+    assert (np.isfinite(d) == fin).all()
+    assert np.allclose(d[fin], d_ref[fin], rtol=0, atol=1e-9)
+    q = _fresh(p)
+    geo_lower_bound(q)
+    b = q.__dict__["_geo_bottleneck"]
+    assert b >= 1e299 if np.isinf(b_ref) else b == pytest.approx(b_ref, abs=1e-9)  # split maps: no assignment
+    assert len(q.__dict__["_geo_world"].nodes) < 0.7 * sum(len(x) for x in gb._inscribed(q))
+
+
 def test_comparison_catches_a_wrong_world():
     """Negative control: the reference of the world without one obstacle is lower, and
     with an extra wall higher, on some of the worlds; the test above would fail then."""
