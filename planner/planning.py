@@ -19,7 +19,7 @@ from .plan import Plan, PlanStats
 from .problem import Problem
 from .schedule import merge_steps, shortcut, step_clear
 from .timing import _drop_idle, _makespan, _timed
-from .tries import _cut_bound, _Direct, _door, _geo_bound, _lattice, _name_direct
+from .tries import _bounds_end, _cut_bound, _Direct, _door, _geo_bound, _lattice, _name_direct
 from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
 from .validate import PlanInvalid, check_plan
 
@@ -132,11 +132,12 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     else:  # about a second at 1000 robots: the time limit comes first (the stats keep NaN)
         stats.extra["lower_bounds"] = (f"not computed: they take about {need:.2g} s and "
                                        f"{max(left, 0.0):.2g} s of the time limit was left")
+    end = _bounds_end(t0, limit)
     if stats.extra.get("direct") == "grid":  # elsewhere it would cost more than the plan
-        _geo_bound(problem, stats, t0, limit)
+        _geo_bound(problem, stats, end, limit)
     else:
         stats.extra["geo_lower_bound"] = "not computed: grid worlds only (planner.geobound.geo_lower_bound)"
-    _cut_bound(problem, stats, t0, limit)
+    _cut_bound(problem, stats, end, limit)
     stats.planning_time_s = time.perf_counter() - t0
     result = Plan(result.radius, result.margin, result.durations, result.waypoints,
                   result.max_speed, result.max_accel, stats)

@@ -249,13 +249,39 @@ def test_bounds_are_not_tried_over_the_obstacle_cap():
 
     over, stats = world(_BOUND_MAX_OBSTACLES + 1), PlanStats(found=True)
     t = time.perf_counter()
-    _geo_bound(over, stats, t, t + 60)
-    _cut_bound(over, stats, t, t + 60)
+    _geo_bound(over, stats, t + 60, t + 60)
+    _cut_bound(over, stats, t + 60, t + 60)
     assert "2001 obstacles" in stats.extra["geo_lower_bound"] and "2001 obstacles" in stats.extra["cut_lower_bound"]
     assert math.isnan(stats.makespan_lower_bound_geo_s)
     at, stats = world(60), PlanStats(found=True)
-    _geo_bound(at, stats, time.perf_counter() - 10, time.perf_counter() + 60)
+    _geo_bound(at, stats, time.perf_counter() + 60, time.perf_counter() + 60)
     assert stats.makespan_lower_bound_geo_s > 0 and "geo_lower_bound" not in stats.extra
+
+
+def test_bounds_are_not_started_where_their_budget_cannot_cover_them():
+    """With 1000 obstacles and 0.1 s of budget, neither bound starts (each takes at least
+    about 0.2 s there) and the stats say why, in no time; with 60 s both run (the control)."""
+    import time
+
+    from planner import Circle
+    from planner.plan import PlanStats
+    from planner.tries import _cut_bound, _geo_bound
+
+    discs = tuple(Circle((1.0 + 2.0 * (k % 60), 130.0 + 2.0 * (k // 60)), 0.2) for k in range(1000))
+    start = np.array([[5.0 + 3 * k, 5.0] for k in range(12)])
+    problem = Problem(130.0, 200.0, discs, 1.0, 0.1, start, start + [0.0, 60.0])
+    stats, t = PlanStats(found=True), time.perf_counter()
+    _geo_bound(problem, stats, t + 0.1, t + 60)
+    _cut_bound(problem, stats, t + 0.1, t + 60)
+    assert time.perf_counter() - t < 0.05
+    assert "takes at least about" in stats.extra["geo_lower_bound"]
+    assert "takes at least about" in stats.extra["cut_lower_bound"]
+    assert math.isnan(stats.makespan_lower_bound_geo_s) and math.isnan(stats.makespan_lower_bound_cut_s)
+    stats, t = PlanStats(found=True), time.perf_counter()
+    _geo_bound(problem, stats, t + 60, t + 60)
+    _cut_bound(problem, stats, t + 60, t + 60)
+    assert stats.makespan_lower_bound_geo_s > 0
+    assert "geo_lower_bound" not in stats.extra and "cut_lower_bound" not in stats.extra
 
 
 def test_uneven_lines_are_a_separation_apart_in_floating_point():
