@@ -217,7 +217,7 @@ CORPUS = {
     "map-and-workspace.yaml": ("workspace", "is set by map"),
     "map-binary-garbage.yaml": ("map.file", "garbage.map: is not UTF-8 text"),
     "map-cell-missing.yaml": ("map.cell", "is required"),
-    "map-cells-4096x4096.yaml": ("map.file", "4096 x 4096 cells is more than the 1048576"),
+    "map-cells-5000x5000.yaml": ("map.file", "height must be in [1, 4096] cells, got 5000"),
     "map-height-100000000.yaml": ("map.file", "height must be in [1, 4096] cells, got 100000000"),
     "map-image-5000x5000.yaml": ("map.file", "5000 x 5000 pixels is larger than 4096 x 4096"),
     "map-image-20000x20000.yaml": ("map.file", "huge-20000x20000.png: its header declares more pixels than 4096 x 4096"),

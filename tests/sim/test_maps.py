@@ -291,9 +291,36 @@ def test_huge_image_refused_from_its_header(tmp_path):
     Image.new("L", (8000, 10), 255).save(tmp_path / "wide.png")
     with pytest.raises(MapError, match="8000 x 10 pixels is larger than 4096 x 4096"):
         read_grid(tmp_path / "wide.png")
-    Image.new("L", (2048, 1024), 255).save(tmp_path / "big.png")
-    with pytest.raises(MapError, match="2048 x 1024 cells is more than the 1048576"):
-        read_grid(tmp_path / "big.png")
+    Image.new("L", (10, 4097), 255).save(tmp_path / "tall.png")
+    with pytest.raises(MapError, match="10 x 4097 pixels is larger than 4096 x 4096"):
+        read_grid(tmp_path / "tall.png")
+
+
+def test_large_ros_map_reads_in_bounded_memory(tmp_path):
+    """A 4096 x 4096 ROS map (the largest image) in RGBA reads with its alpha averaged in,
+    without a float copy of every channel: numpy's arrays peak under 300 MB (traced), and
+    the grid is what map_server reads (a pixel with alpha 0 counts as darker, so blocked,
+    because trinary mode averages it in)."""
+    import tracemalloc
+
+    a = np.full((4096, 4096, 4), 254, np.uint8)
+    a[:, :, 3] = 255
+    a[:8, :8, 3] = 0  # transparent: (254 * 3 + 0) / 4 = 190.5, p = 0.25 > free_thresh 0.196
+    a[100:200, 300:400, :3] = 0
+    Image.fromarray(a, "RGBA").save(tmp_path / "big.png")
+    (tmp_path / "big.yaml").write_text("image: big.png\nresolution: 0.01\norigin: [0, 0, 0]\nnegate: 0\n"
+                                       "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    del a
+    tracemalloc.start()
+    try:
+        grid = read_grid(tmp_path / "big.yaml")
+        grown = tracemalloc.get_traced_memory()[1] / 2**20
+    finally:
+        tracemalloc.stop()
+    assert grid.blocked.shape == (4096, 4096)
+    assert grid.blocked[:8, :8].all() and not grid.blocked[8:100].any()
+    assert grid.blocked[100:200, 300:400].all() and grid.blocked.sum() == 64 + 100 * 100
+    assert grown < 300, f"{grown:.0f} MB"
 
 
 @pytest.mark.parametrize("name", ["two-rooms-ros.yaml", "pillars-png.yaml"])
