@@ -37,7 +37,8 @@ Caps (measured; see tests/sim/test_maps.py)
   1024 x 1024 map with 20 % random blocked cells is refused by the piece cap
   in under 0.1 s; a 4096 x 4096 ROS map reads in about 1.5 s, its numpy arrays
   peaking at 240 MB (RGBA; ``swarmform show`` of it: 3.7 s, 480 MB in all).
-  Nav2's own ``warehouse.pgm`` (1006 x 1674 pixels, 2084 rectangles) reads in 0.1 s.  The hand-written ``obstacles:`` keep their own caps.
+  Nav2's own ``warehouse.pgm`` (1006 x 1674 pixels, 2084 rectangles) reads in
+  0.1 s.  The hand-written ``obstacles:`` keep their own caps.
 
 Obstacles are rectangles made by merging each row's runs of blocked cells
 with the identical runs of the rows below: convex, simple, easy on pymunk
