@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import errno
 import sys
+import time
 from pathlib import Path
 
 from .argtypes import int_in, seconds
@@ -126,12 +127,6 @@ def _print_stats(stats, margin: float, out=None, *, auto: bool = False):
         print(f"  {key:<15} {value}", file=out)
 
 
-def _params_with_time_limit(scenario, time_limit):
-    from dataclasses import replace
-
-    return scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
-
-
 _SET_HELP = "set a scenario field (dotted path, YAML scalar), e.g. --set robots.margin=0.2; repeatable"
 
 
@@ -148,6 +143,7 @@ def _cmd_plan(args) -> int:
     if args.output:
         check_out_file(args.output, "--output")
     overrides = combinations([parse_set(text, many=False) for text in args.set])[0]
+    t0 = time.perf_counter()
     scenario = read_scenario(args.scenario, overrides=overrides)
     seed = scenario.seed if args.seed is None else args.seed
     rng = scenario.generator(seed)
@@ -155,7 +151,7 @@ def _cmd_plan(args) -> int:
     out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-plan.json"
     if not args.output:
         check_out_file(out, "--output")
-    params = _params_with_time_limit(scenario, args.time_limit)
+    params = scenario.planner_params(args.time_limit, spent=time.perf_counter() - t0)
     mode = "auto" if params.auto else f"g={params.g} q={params.q}"
     print(f"{scenario.name} (seed {seed}): {problem.m} robots, "
           f"{scenario.describe()}, {mode}")

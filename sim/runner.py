@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import json
 import sys
-from dataclasses import dataclass, field, replace
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -109,6 +110,7 @@ def run_scenario(
     (``{"robots.margin": 0.2}``, as ``--set``).
     """
     out_dir = check_out_dir(out_dir)
+    t0 = time.perf_counter()
     scenario = read_scenario(path, overrides=overrides)
     loaded = None
     if plan_path is not None:
@@ -138,7 +140,7 @@ def run_scenario(
             result, stats = loaded, _loaded_stats(loaded, problem)
             report["plan_file"] = str(plan_path)
         else:
-            params = scenario.planner if time_limit is None else replace(scenario.planner, time_limit=time_limit)
+            params = scenario.planner_params(time_limit, spent=time.perf_counter() - t0)
             try:
                 result, stats, leg_times = plan_legs(problem, targets, params, rng,
                                                      holds=[t.hold for t in scenario.legs],

@@ -142,6 +142,17 @@ class Scenario:
         """``start -> target`` (every target of a chain)."""
         return " -> ".join(spec.describe() for spec in (self.start, *self.legs))
 
+    def planner_params(self, time_limit: float | None = None, spent: float = 0.0) -> PlannerParams:
+        """The planner's parameters for a run: its time limit ``time_limit`` (a
+        ``--time-limit``) or the scenario's, less ``spent``, the seconds that reading
+        the scenario, its map and its formations took, so that the run as a whole keeps
+        to the limit; never under a twentieth of it (the planner always gets a try)."""
+        from dataclasses import replace
+
+        limit = self.planner.time_limit if time_limit is None else float(time_limit)
+        limit = max(limit - max(float(spent), 0.0), limit / 20.0)
+        return replace(self.planner, time_limit=limit)
+
     def generator(self, seed: int | None = None) -> np.random.Generator:
         """The run's one generator, seeded with ``seed`` (default: the scenario's).
 
