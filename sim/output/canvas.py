@@ -13,6 +13,11 @@ colour with a dark outline, a trail a pale line, a contact red, a robot that
 failed grey with a dark cross.  Lengths are shown by a scale bar of a round
 length (``10 units``) at the right of the legend band and by ticks at the
 same spacing along the walls, from the workspace's origin (bottom left).
+
+A map whose free space fills only a small part of its workspace (a ROS map is
+mostly unknown space) is drawn cropped to that part (:func:`view_box`): the
+frame then bounds the view, not the walls, and its ticks count from the view's
+bottom left corner.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ __all__ = [
     "nice_length",
     "robot_colors",
     "tint",
+    "view_box",
 ]
 
 BACKGROUND = (248, 248, 244)
@@ -96,6 +102,48 @@ def tint(color: tuple[int, int, int], amount: float = _TINT) -> tuple[int, int, 
     return tuple(int(round(c + (b - c) * amount)) for c, b in zip(color, BACKGROUND))
 
 
+#: A workspace whose free space (its bounding box, padded) covers less than this share of
+#: it is drawn cropped to that box.
+VIEW_CROP_BELOW = 0.5
+
+
+def view_box(problem: Problem) -> tuple[float, float, float, float]:
+    """``(x0, y0, x1, y1)``: the part of the workspace a picture shows (cached).
+
+    All of it, unless the bounding box of the free space (the workspace less the
+    obstacles, and every start and target), padded by two radii and 2 % of its
+    longer side, covers less than :data:`VIEW_CROP_BELOW` of it: then that box.
+    """
+    cached = problem.__dict__.get("_view_box")
+    if cached is not None:
+        return cached
+    full = (0.0, 0.0, float(problem.width), float(problem.height))
+    box = full
+    if problem.obstacles:
+        import shapely
+        from shapely.geometry import Point
+        from shapely.geometry import Polygon as ShapelyPolygon
+        from shapely.geometry import box as rect
+
+        shapes = [Point(ob.center).buffer(ob.radius) if isinstance(ob, Circle) else ShapelyPolygon(ob.vertices)
+                  for ob in problem.obstacles]
+        free = rect(*full).difference(shapely.union_all([g if g.is_valid else g.buffer(0) for g in shapes]))
+        if not free.is_empty:
+            pts = np.concatenate([np.asarray(problem.start, float).reshape(-1, 2),
+                                  np.asarray(problem.target, float).reshape(-1, 2)])
+            x0, y0, x1, y1 = free.bounds
+            if len(pts):
+                x0, y0 = min(x0, pts[:, 0].min()), min(y0, pts[:, 1].min())
+                x1, y1 = max(x1, pts[:, 0].max()), max(y1, pts[:, 1].max())
+            pad = 2 * problem.radius + 0.02 * max(x1 - x0, y1 - y0)
+            x0, y0 = max(0.0, x0 - pad), max(0.0, y0 - pad)
+            x1, y1 = min(full[2], x1 + pad), min(full[3], y1 + pad)
+            if (x1 - x0) * (y1 - y0) < VIEW_CROP_BELOW * full[2] * full[3]:
+                box = (float(x0), float(y0), float(x1), float(y1))
+    problem.__dict__["_view_box"] = box
+    return box
+
+
 def frame_size(problem: Problem) -> int:
     """The automatic picture size [px] of ``problem``: grows with the workspace and ``m``.
 
@@ -104,7 +152,8 @@ def frame_size(problem: Problem) -> int:
     see :func:`label_font`) and at least ``56 * sqrt(m)`` pixels; it is
     ``MAX_SIZE`` when neither fits.  Even.
     """
-    side = max(problem.width, problem.height)
+    x0, y0, x1, y1 = view_box(problem)
+    side = max(x1 - x0, y1 - y0)
     need = max(_PX_PER_RADIUS * side / problem.radius, _PX_PER_SQRT_M * math.sqrt(problem.m))
     need = need * 1.05 + 16  # the border
     size = int(min(MAX_SIZE, max(MIN_SIZE, math.ceil(need))))
@@ -192,19 +241,22 @@ class Canvas:
         self.target_color = target_color
         border = max(4, size // 60)
         self.border = border
-        self.scale = (size - 2 * border) / max(problem.width, problem.height)
+        self.view = view_box(problem)
+        vx0, vy0, vx1, vy1 = self.view
+        view_w, view_h = vx1 - vx0, vy1 - vy0
+        self.scale = (size - 2 * border) / max(view_w, view_h)
         self.font = _font(max(14, size // 30))
         self.line_h = self.font.get_linesize() + 1
         self.pad = max(4, size // 80)  # free edge all round: room for a contact flash's frame
         self.header = self.pad + 2 * self.line_h + 2
-        ws_w = int(round(problem.width * self.scale)) + 2 * border
+        ws_w = int(round(view_w * self.scale)) + 2 * border
         self.scale_length = None
         self.scale_bar_rect = None
         if scale_bar:
             self.scale_length = nice_length(max(24.0, ws_w / 5) / self.scale)
         self._legend_rows = self._layout_legend(list(legend), ws_w)
         self.footer = len(self._legend_rows) * self.line_h + self.pad + (2 if self._legend_rows else 0)
-        h = int(round(problem.height * self.scale)) + 2 * border + self.header + self.footer
+        h = int(round(view_h * self.scale)) + 2 * border + self.header + self.footer
         self.width_px = ws_w + (ws_w % 2)
         self.height_px = h + (h % 2)
         self.r = problem.radius * self.scale  # robot radius [px], not rounded
@@ -215,8 +267,8 @@ class Canvas:
     def to_px(self, pts: np.ndarray) -> np.ndarray:
         """Workspace points ``(..., 2)`` as ``(n, 2)`` pixel coordinates (x right, y down)."""
         pts = np.asarray(pts, float).reshape(-1, 2)
-        x = self.border + pts[:, 0] * self.scale
-        y = self.header + self.border + (self.problem.height - pts[:, 1]) * self.scale
+        x = self.border + (pts[:, 0] - self.view[0]) * self.scale
+        y = self.header + self.border + (self.view[3] - pts[:, 1]) * self.scale
         return np.stack([x, y], axis=1)
 
     @property
@@ -243,13 +295,18 @@ class Canvas:
         s = pygame.Surface((self.width_px, self.height_px))
         s.fill(BACKGROUND)
         p = self.problem
-        corners = self.to_px(np.array([[0, 0], [p.width, 0], [p.width, p.height], [0, p.height]]))
+        x0, y0, x1, y1 = self.view
+        corners = self.to_px(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
         pygame.draw.polygon(s, WALL, [tuple(c) for c in corners], width=max(2, self.border // 2))
-        for ob in p.obstacles:
+        (left, top), (right, bottom) = corners[3], corners[1]
+        s.set_clip(pygame.Rect(int(math.floor(left)), int(math.floor(top)),
+                               int(math.ceil(right - left)) + 1, int(math.ceil(bottom - top)) + 1))
+        for ob in p.obstacles:  # clipped to the view (a cropped map's obstacles run past it)
             if isinstance(ob, Circle):
                 self.disc(s, OBSTACLE, self.to_px(np.array(ob.center))[0], ob.radius * self.scale)
             else:
                 self.polygon(s, OBSTACLE, self.to_px(ob.vertices))
+        s.set_clip(None)
         if self.scale_length is not None:
             self._draw_ticks(s)
         self._draw_legend(s)
@@ -257,19 +314,20 @@ class Canvas:
 
     def _draw_ticks(self, s: pygame.Surface) -> None:
         """Ticks every ``scale_length`` units, outward from the walls into the border."""
-        p, step = self.problem, self.scale_length
+        step = self.scale_length
         n = self.border - max(2, self.border // 2) // 2
         if n < 2 or step * self.scale < 6:
             return
         w = max(1, self.border // 6)
-        x0, y0 = self.to_px(np.array([0.0, 0.0]))[0]
-        x1, y1 = self.to_px(np.array([p.width, p.height]))[0]
-        for k in range(1, int(math.floor(p.width / step + 1e-9)) + 1):
+        vx0, vy0, vx1, vy1 = self.view
+        x0, y0 = self.to_px(np.array([vx0, vy0]))[0]
+        x1, y1 = self.to_px(np.array([vx1, vy1]))[0]
+        for k in range(1, int(math.floor((vx1 - vx0) / step + 1e-9)) + 1):
             x = round(x0 + k * step * self.scale)  # whole pixels: pygame truncates
             if x < x1 - 1:
                 pygame.draw.line(s, SCALE, (x, y0), (x, y0 + n), w)
                 pygame.draw.line(s, SCALE, (x, y1), (x, y1 - n), w)
-        for k in range(1, int(math.floor(p.height / step + 1e-9)) + 1):
+        for k in range(1, int(math.floor((vy1 - vy0) / step + 1e-9)) + 1):
             y = round(y0 - k * step * self.scale)
             if y > y1 + 1:
                 pygame.draw.line(s, SCALE, (x0, y), (x0 - n, y), w)

@@ -120,3 +120,36 @@ def test_a_small_swarm_keeps_one_line_per_robot(m):
     t, err = _tracking(m)
     ax, lines = _lines(_tracking_figure({}, t, err))
     assert set(lines) == {f"robot {i}" for i in range(m)} and not ax.collections
+
+
+def _walled_in(free_side=10.0, width=100.0, height=80.0, corner=(20.0, 30.0)):
+    """A workspace blocked but for a square of ``free_side`` at ``corner``: a ROS map, mostly unknown."""
+    from planner.problem import Polygon
+
+    x0, y0 = corner
+    x1, y1 = x0 + free_side, y0 + free_side
+    rects = [(0, 0, width, y0), (0, y1, width, height), (0, y0, x0, y1), (x1, y0, width, y1)]
+    obstacles = tuple(Polygon(np.array([[a, b], [c, b], [c, d], [a, d]], float)) for a, b, c, d in rects)
+    start = np.array([[x0 + 2.0, y0 + 2.0], [x0 + 7.0, y0 + 2.0]])
+    return Problem(width, height, obstacles, 0.5, 0.1, start, start + [0.0, 5.0])
+
+
+def test_a_mostly_blocked_map_is_drawn_cropped_to_its_free_space():
+    """The free square of 10 fills 1.25 % of the workspace: the picture shows that square
+    (padded by two radii and 2 %) at a scale eight times larger, robots inside the frame;
+    the control: the same square free in an open workspace is drawn whole."""
+    from sim.output.canvas import view_box
+
+    p = _walled_in()
+    x0, y0, x1, y1 = view_box(p)
+    assert (x0, y0) == pytest.approx((20 - 1.2, 30 - 1.2)) and (x1, y1) == pytest.approx((30 + 1.2, 40 + 1.2))
+    cv = Canvas(p, 600, legend=_SCENARIO_LEGEND)
+    whole = Canvas(_problem(width=100.0, height=80.0), 600, legend=_SCENARIO_LEGEND)
+    assert cv.scale == pytest.approx(whole.scale * 100 / 12.4)
+    px = cv.to_px(p.start)
+    assert (px[:, 0] > cv.border).all() and (px[:, 0] < cv.width_px - cv.border).all()
+    img = draw_scenario(p, size=600)
+    mid = cv.to_px(np.array([[25.0, 35.0]]))[0].astype(int)
+    assert tuple(img[mid[1], mid[0]]) == BACKGROUND  # free space, not obstacle, in the middle
+    assert view_box(_problem(width=100.0, height=80.0)) == (0.0, 0.0, 100.0, 80.0)
+    assert view_box(_walled_in(free_side=70.0, corner=(5.0, 5.0))) == (0.0, 0.0, 100.0, 80.0)  # 70 %: whole
