@@ -176,7 +176,10 @@ def test_a_map_grid_is_read_from_the_obstacles_and_not_from_off_lattice_ones():
     assert math.isclose(map_grid(fine)[1], CELL)
 
 
-def test_scattered_robots_on_a_map_are_snapped_onto_its_cells_and_routed():
+def test_scattered_robots_on_a_map_are_snapped_onto_its_cells_and_routed(monkeypatch):
+    import planner.planning as planning
+
+    monkeypatch.setattr(planning, "FREE_AFTER_GRID_MAX_STEPS", 0)  # the grid stage's own plan
     for seed, m in ((0, 30), (1, 60)):
         p = _rooms_scattered(m, seed)
         result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(seed))
@@ -187,6 +190,40 @@ def test_scattered_robots_on_a_map_are_snapped_onto_its_cells_and_routed():
         assert np.allclose(end[np.lexsort(end.T)], p.target[np.lexsort(p.target.T)])  # the target set, unlabeled
         geo = geo_lower_bound(p)
         assert result.makespan <= 3.0 * geo, (result.makespan, geo)
+
+
+def _arena(m: int, seed: int) -> Problem:
+    """16 x 16 cells, a band of 3 blocked all round (a ROS map's unknown space) and four
+    pillars in the open arena; starts and targets scattered: off every grid."""
+    from planner.scatter import scatter
+
+    blocked = np.zeros((16, 16), bool)
+    blocked[:3] = blocked[-3:] = True
+    blocked[:, :3] = blocked[:, -3:] = True
+    for r, c in ((6, 6), (6, 9), (9, 6), (9, 9)):
+        blocked[r, c] = True
+    shell = _cells_problem(blocked, [(3, 3)], [(3, 3)])
+    rng = np.random.default_rng(seed)
+    s = scatter(shell.env, m, shell.separation, shell.clearance, rng)
+    g = scatter(shell.env, m, shell.separation, shell.clearance, rng)
+    return Problem(shell.width, shell.height, shell.obstacles, 1.0, 0.1, s, g)
+
+
+def test_a_short_snapped_grid_plan_is_followed_by_the_free_space_roadmap(monkeypatch):
+    """25 robots scattered in an open arena: the grid plan is a few steps (snap, route,
+    snap back); the free-space roadmap, tried after it, moves them from where they stand
+    and its plan is kept, shorter; the control: without the follow-up the grid's plan stands."""
+    import planner.planning as planning
+
+    p = _arena(25, 0)
+    result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(0))
+    check_plan(p, result)
+    short = planning.FREE_AFTER_GRID_MAX_STEPS
+    monkeypatch.setattr(planning, "FREE_AFTER_GRID_MAX_STEPS", 0)
+    grid_only, grid_stats = plan(_arena(25, 0), PlannerParams(time_limit=30), np.random.default_rng(0))
+    assert grid_stats.extra["direct"] == "grid" and len(grid_only.durations) <= short
+    assert stats.extra["direct"] == "free-space roadmap"
+    assert result.makespan < 0.7 * grid_only.makespan
 
 
 def _fine_door(door_cells: tuple[int, int]) -> Problem:
