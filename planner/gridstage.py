@@ -135,13 +135,15 @@ def route_budget(m: int) -> float:
     return 1e-4 * m**2 + 0.5 * min(1.0, (m / 150) ** 2)
 
 
-def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
+def grid_plan(problem: Problem, deadline: float, grid=None, rng=None, info: dict | None = None):
     """``(merged waypoints, raw time steps)`` of the shortest of a few grid routings, or
     ``None``.  Each try is routed (:func:`grid_waypoints`), merged
     (:func:`planner.merge.merge_steps`) and timed.  Tries go on while their estimated work
     (:func:`try_work`, not the clock) fits in :data:`GRID_BUDGET_S`, and before
     ``deadline``.  An assignment whose first try with random tie-breaks routes exactly as
-    its try without them is not tried again when its tries are costly (:data:`SETTLE_WORK_S`)."""
+    its try without them is not tried again when its tries are costly (:data:`SETTLE_WORK_S`).
+    ``info``, when given, gets ``snap_rounds`` (the snapping rounds onto the grid and off it)
+    and ``route_steps`` (the steps between them) of the first try that routed."""
     from .merge import merge_steps
     from .timing import _drop_idle, _makespan
 
@@ -169,6 +171,9 @@ def grid_plan(problem: Problem, deadline: float, grid=None, rng=None):
             work += last  # a failed try counted as the last one that routed
             continue
         last = try_work(problem.m, 0, len(raw) - 1, False)
+        if info is not None and "route_steps" not in info:
+            info["snap_rounds"] = sum(len(memo[key][0] or ()) for key in ("start", "target") if key in memo)
+            info["route_steps"] = len(memo["steps"]) - 1
         work += try_work(problem.m, _graph(problem, grid)[0].n, len(raw) - 1, k == 0)
         if k < 2:
             plain[kind] = raw

@@ -11,15 +11,25 @@ from .bounds import lower_bounds
 from .connect import sequenced_moves
 from .conveyor import DOOR_MIN_ROBOTS
 from .feasibility import feasibility
-from .freespace import free_roadmap_waypoints
 from .gridstage import find_grid, grid_plan
 from .guide import Late
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
-from .schedule import merge_steps, shortcut, step_clear
-from .timing import _drop_idle, _makespan, _timed
-from .tries import _bounds_end, _cut_bound, _Direct, _door, _geo_bound, _lattice, _name_direct
+from .schedule import shortcut, step_clear
+from .timing import _makespan, _timed
+from .tries import (
+    CLUTTER,
+    _after_grid,
+    _bounds_end,
+    _cut_bound,
+    _Direct,
+    _door,
+    _free_space,
+    _geo_bound,
+    _lattice,
+    _name_direct,
+)
 from .upump import _GOOD_ENOUGH, STAGES, NoPlanFound, build_roadmap, retrieve, stage_chain
 from .validate import PlanInvalid, check_plan
 
@@ -192,27 +202,12 @@ LATTICE_MIN_ROBOTS = 60
 #: right after the one-step try when every start and target lies on one square grid.
 GRID_MIN_ROBOTS = 12
 
-#: Where the grid stage snapped the robots onto a map's cells and its plan has at most this
-#: many steps (the snapping rounds and a short routing between them), with at most
-#: :data:`FREE_AFTER_GRID_MAX_ROBOTS` robots and :data:`FREE_AFTER_GRID_MAX_OBSTACLES`
-#: obstacles, the free-space roadmap and a lattice (from :data:`LATTICE_MIN_ROBOTS` robots)
-#: are tried after it, for :data:`FREE_AFTER_GRID_MIN_S` or twice the grid stage's time,
-#: whichever is longer; the shortest plan is kept (scattered robots in the turtlebot3 arena
-#: of Nav2's maps: 2.45x -> 1.67x the bound at 20).
-FREE_AFTER_GRID_MAX_STEPS = 5
-FREE_AFTER_GRID_MAX_ROBOTS = 150
-FREE_AFTER_GRID_MAX_OBSTACLES = 500
-FREE_AFTER_GRID_MIN_S = 4.0  # the roadmap's set-up alone takes 0.9 to 1.8 s in that arena, its routing up to 2 s more
-
 DENSE_COVERAGE = 0.3  #: robots' discs over an obstacle-free workspace from which the packing stage (planner.dense) runs
 
 #: From this many robots on, auto mode does not build the pebble-graph roadmap when its
 #: direct tries found nothing: its interference graphs grow with the square of the
 #: candidate pairs (gigabytes at 1000 robots) and it never connected such problems.
 ROADMAP_MAX_ROBOTS = 300
-
-#: From this many obstacles on, a plan of the free-space roadmap ends the search.
-CLUTTER = 10
 
 _ROUTES = 3  # best routes by estimate compared by their scheduled makespan (plus one per family)
 _CHECK_S_PER_ROBOT = 6e-4  # the exact check of a plan [s per robot], measured at 1000 robots, times 1 + obstacles / 100
@@ -254,29 +249,14 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
     if problem.m >= GRID_MIN_ROBOTS and time.perf_counter() < deadline:
         grid = find_grid(problem)
         if grid is not None:  # starts and targets on one grid, or a map of cells: route on it
-            t_grid = time.perf_counter()
-            found = grid_plan(problem, deadline, grid[0], rng)
+            t_grid, info = time.perf_counter(), {}
+            found = grid_plan(problem, deadline, grid[0], rng, info=info)
             if found is not None:
                 w, sequential = found
                 out.offer("grid", sequential, (w, sequential, _makespan(problem, w)))
-                if (grid[1] and len(w) - 1 <= FREE_AFTER_GRID_MAX_STEPS and problem.m <= FREE_AFTER_GRID_MAX_ROBOTS
-                        and 0 < len(problem.obstacles) <= FREE_AFTER_GRID_MAX_OBSTACLES):
-                    # a short routing between snapping rounds: a lattice through the free space,
-                    # or the free-space roadmap, which moves robots from where they stand, may
-                    # do better (each kept when shorter)
-                    now = time.perf_counter()
-                    end = min(deadline, now + max(FREE_AFTER_GRID_MIN_S, 2.0 * (now - t_grid)))
-                    grid_best = out.best
-                    _free_space(problem, out, lower_bounds(problem)[0], end, rng)
-                    if problem.m >= LATTICE_MIN_ROBOTS:
-                        _lattice(problem, out, end)
-                    if out.best is not grid_best and params.concurrent:
-                        # compared as they will run: shortcut (below), which shortens grid plans more
-                        runs = []
-                        for w_c, steps_c, _, label_c in (grid_best, out.best):
-                            w_c = shortcut(problem, w_c, deadline=deadline)
-                            runs.append((w_c, steps_c, _makespan(problem, w_c), label_c))
-                        out.best = min(runs, key=lambda r: r[2])
+                if grid[1]:  # snapped onto a map's cells
+                    _after_grid(problem, params, out, info, t_grid, deadline, rng,
+                                lattice=problem.m >= LATTICE_MIN_ROBOTS)
                 out.accepted = True
                 return out
     if on_grid_fail is not None and time.perf_counter() < deadline:
@@ -327,27 +307,6 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
     if problem.obstacles and out.best is None:  # nothing yet: before the pebble-graph roadmap
         _free_space(problem, out, bound, deadline, rng)
     return out
-
-
-def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, rng) -> None:
-    """Offer the free-space roadmap's plan (:mod:`planner.freespace`), a few tries."""
-    if "free-space roadmap" in out.legs:
-        return
-    raw = None
-    # Escapes and ties are random: a stalled routing may pass on another try.  Goal
-    # swapping first (shorter plans), priority inheritance where it stalls.
-    for router in ("tswap", "tswap", "tswap", "pibt") * 3:
-        if raw is not None or time.perf_counter() > deadline:
-            break
-        raw = free_roadmap_waypoints(problem, deadline, rng, router=router)
-    if raw is None:
-        out.legs.setdefault("free-space roadmap", 0)
-        return
-    w = merge_steps(problem, _drop_idle(raw), deadline)
-    span = _makespan(problem, w)
-    out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, span))
-    # Among many obstacles the pebble-graph roadmap costs much and rarely does better.
-    out.accepted = len(problem.obstacles) >= CLUTTER or span <= _GOOD_ENOUGH[-1] * bound
 
 
 def _at_once(problem: Problem, pos: np.ndarray, nxt: np.ndarray) -> np.ndarray | None:

@@ -10,12 +10,13 @@ from dataclasses import dataclass, field
 
 from .bounds import lower_bounds
 from .cutbound import cut_lower_bound
+from .freespace import free_roadmap_waypoints
 from .geobound import geo_lower_bound
 from .lattice import lattice_candidates
 from .passages import passage_points
 from .plan import PlanStats
 from .problem import Problem
-from .schedule import merge_steps
+from .schedule import merge_steps, shortcut
 from .timing import _drop_idle, _makespan
 from .upump import _GOOD_ENOUGH
 
@@ -176,3 +177,66 @@ def _door(problem: Problem, out: _Direct, deadline: float) -> bool:
     out.offer("door", raw, (w, raw, _makespan(problem, w)))
     out.accepted = True
     return True
+
+
+#: From this many obstacles on, a plan of the free-space roadmap ends the search.
+CLUTTER = 10
+
+#: Where the grid stage snapped the robots onto a map's cells and its plan has at most this
+#: many steps (the snapping rounds and a short routing between them), or it took at least as
+#: many snapping rounds as routing steps (a crowd in an open arena), with at most
+#: :data:`FREE_AFTER_GRID_MAX_ROBOTS` robots and :data:`FREE_AFTER_GRID_MAX_OBSTACLES`
+#: obstacles, the free-space roadmap and a lattice (from :data:`LATTICE_MIN_ROBOTS` robots)
+#: are tried after it (:func:`_after_grid`), for :data:`FREE_AFTER_GRID_MIN_S` or twice the grid stage's time,
+#: whichever is longer; the shortest plan is kept (scattered robots in the turtlebot3 arena
+#: of Nav2's maps: 2.45x -> 1.67x the bound at 20).
+FREE_AFTER_GRID_MAX_STEPS = 5
+FREE_AFTER_GRID_MAX_ROBOTS = 150
+FREE_AFTER_GRID_MAX_OBSTACLES = 500
+FREE_AFTER_GRID_MIN_S = 4.0  # the roadmap's set-up alone takes 0.9 to 1.8 s in that arena, its routing up to 2 s more
+
+def _after_grid(problem: Problem, params, out: _Direct, info: dict, t_grid: float, deadline: float, rng,
+                lattice: bool) -> None:
+    """After the grid stage's plan (``out.best``) of snapped robots: where it is short
+    (:data:`FREE_AFTER_GRID_MAX_STEPS`) or took at least as many snapping rounds as routing
+    steps (``info``, :func:`planner.gridstage.grid_plan`), the free-space roadmap, which moves
+    robots from where they stand, and a lattice (``lattice``) may do better; each is kept
+    when shorter as it will run (shortcut, which shortens grid plans more)."""
+    steps = len(out.best[0]) - 1
+    short = steps <= FREE_AFTER_GRID_MAX_STEPS or info.get("snap_rounds", 0) >= info.get("route_steps", 1)
+    if not (short and problem.m <= FREE_AFTER_GRID_MAX_ROBOTS
+            and 0 < len(problem.obstacles) <= FREE_AFTER_GRID_MAX_OBSTACLES):
+        return
+    now = time.perf_counter()
+    end = min(deadline, now + max(FREE_AFTER_GRID_MIN_S, 2.0 * (now - t_grid)))
+    grid_best = out.best
+    _free_space(problem, out, lower_bounds(problem)[0], end, rng)
+    if lattice:
+        _lattice(problem, out, end)
+    if out.best is not grid_best and params.concurrent:
+        runs = []
+        for w_c, steps_c, _, label_c in (grid_best, out.best):
+            w_c = shortcut(problem, w_c, deadline=deadline)
+            runs.append((w_c, steps_c, _makespan(problem, w_c), label_c))
+        out.best = min(runs, key=lambda r: r[2])
+
+
+def _free_space(problem: Problem, out: _Direct, bound: float, deadline: float, rng) -> None:
+    """Offer the free-space roadmap's plan (:mod:`planner.freespace`), a few tries."""
+    if "free-space roadmap" in out.legs:
+        return
+    raw = None
+    # Escapes and ties are random: a stalled routing may pass on another try.  Goal
+    # swapping first (shorter plans), priority inheritance where it stalls.
+    for router in ("tswap", "tswap", "tswap", "pibt") * 3:
+        if raw is not None or time.perf_counter() > deadline:
+            break
+        raw = free_roadmap_waypoints(problem, deadline, rng, router=router)
+    if raw is None:
+        out.legs.setdefault("free-space roadmap", 0)
+        return
+    w = merge_steps(problem, _drop_idle(raw), deadline)
+    span = _makespan(problem, w)
+    out.offer("free-space roadmap", len(raw) - 1, (w, len(raw) - 1, span))
+    # Among many obstacles the pebble-graph roadmap costs much and rarely does better.
+    out.accepted = len(problem.obstacles) >= CLUTTER or span <= _GOOD_ENOUGH[-1] * bound

@@ -35,14 +35,11 @@ Caps (measured; see tests/sim/test_maps.py)
   per rectangle.  Measured here: Berlin_1_256 (65 536 cells, the largest
   benchmark map) reads and covers in about 0.05 s into 1213 rectangles; a
   1024 x 1024 map with 20 % random blocked cells is refused by the piece cap
-  in under 0.1 s; a 4096 x 4096 ROS map reads in about 1.5 s, its numpy arrays
-  peaking at 240 MB (RGBA; ``swarmform show`` of it: 3.7 s, 480 MB in all).
-  Nav2's own ``warehouse.pgm`` (1006 x 1674 pixels, 2084 rectangles) reads in
-  0.1 s.  The hand-written ``obstacles:`` keep their own caps.
+  in under 0.1 s; a 4096 x 4096 ROS map in about 1.5 s, its arrays peaking at
+  240 MB (RGBA).  The hand-written ``obstacles:`` keep their own caps.
 
-Obstacles are rectangles made by merging each row's runs of blocked cells
-with the identical runs of the rows below: convex, simple, easy on pymunk
-and the planner's kernels, and their union is exactly the blocked cells.
+Obstacles are rectangles (each row's runs of blocked cells merged with the same runs
+below: convex, easy on pymunk and the planner), whose union is exactly the blocked cells.
 """
 
 from __future__ import annotations
@@ -69,10 +66,8 @@ MAX_IMAGE_BYTES = 64 << 20
 MAX_PIECES = 4096
 """The most obstacle rectangles a map may give (Berlin_1_256 gives 1213, warehouse-20-40-10-2-2 804)."""
 
-_BLOCKED = "@OTW"
-_FREE = ".GS"
-_IMAGE_SUFFIXES = (".png", ".pgm")
-_ROS_SUFFIXES = (".yaml", ".yml")
+_BLOCKED, _FREE = "@OTW", ".GS"
+_IMAGE_SUFFIXES, _ROS_SUFFIXES = (".png", ".pgm"), (".yaml", ".yml")
 
 
 class MapError(ValueError):
@@ -294,6 +289,10 @@ def _ros_number(value, where: str, lo: float, hi: float) -> float:
 # images and bounded reads
 
 
+def _mean(channels: np.ndarray) -> np.ndarray:  # 8-bit channels summed in 16 bits: no float copy of each
+    return channels.sum(axis=2, dtype=np.uint16) / float(channels.shape[2])
+
+
 def _read_grey(path: Path, where: str | None = None, ros_mode: str | None = None
                ) -> tuple[np.ndarray, np.ndarray | None]:
     """Grey values 0..255 ``(rows, cols)`` float, the size checked from the header first,
@@ -330,13 +329,13 @@ def _read_grey(path: Path, where: str | None = None, ros_mode: str | None = None
             if not has_alpha:
                 if ros_mode is None or im.mode == "L":  # a grey image's red, green and blue are its grey
                     return np.asarray(im.convert("L"), np.float64), None
-                return _mean(np.asarray(im.convert("RGB"), np.uint8)), None
+                return _mean(np.asarray(im.convert("RGB"))), None
             rgba = im.convert("RGBA")
             translucent = np.asarray(rgba.getchannel("A"), np.uint8) < 255
             if ros_mode is None:
                 white = Image.new("RGBA", rgba.size, (255, 255, 255, 255))
                 return np.asarray(Image.alpha_composite(white, rgba).convert("L"), np.float64), translucent
-            arr = np.asarray(rgba, np.uint8)
+            arr = np.asarray(rgba)
             return _mean(arr if ros_mode == "trinary" else arr[:, :, :3]), translucent
     except MapError:
         raise
@@ -349,12 +348,6 @@ def _read_grey(path: Path, where: str | None = None, ros_mode: str | None = None
 
 
 _ALPHA_MODES = frozenset({"LA", "La", "PA", "RGBA", "RGBa"})
-
-
-def _mean(channels: np.ndarray) -> np.ndarray:
-    """The mean over the last axis of 8-bit channels, as float: summed in 16 bits (a float
-    copy of every channel of a 4096 x 4096 image would take half a gigabyte)."""
-    return channels.sum(axis=2, dtype=np.uint16) / float(channels.shape[2])
 
 
 def _text(path: Path, max_bytes: int = MAX_MAP_BYTES) -> str:

@@ -177,9 +177,9 @@ def test_a_map_grid_is_read_from_the_obstacles_and_not_from_off_lattice_ones():
 
 
 def test_scattered_robots_on_a_map_are_snapped_onto_its_cells_and_routed(monkeypatch):
-    import planner.planning as planning
+    import planner.tries as tries
 
-    monkeypatch.setattr(planning, "FREE_AFTER_GRID_MAX_STEPS", 0)  # the grid stage's own plan
+    monkeypatch.setattr(tries, "FREE_AFTER_GRID_MAX_ROBOTS", 0)  # the grid stage's own plan
     for seed, m in ((0, 30), (1, 60)):
         p = _rooms_scattered(m, seed)
         result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(seed))
@@ -213,13 +213,13 @@ def test_a_short_snapped_grid_plan_is_followed_by_the_free_space_roadmap(monkeyp
     """25 robots scattered in an open arena: the grid plan is a few steps (snap, route,
     snap back); the free-space roadmap, tried after it, moves them from where they stand
     and its plan is kept, shorter; the control: without the follow-up the grid's plan stands."""
-    import planner.planning as planning
+    import planner.tries as tries
 
     p = _arena(25, 0)
     result, stats = plan(p, PlannerParams(time_limit=30), np.random.default_rng(0))
     check_plan(p, result)
-    short = planning.FREE_AFTER_GRID_MAX_STEPS
-    monkeypatch.setattr(planning, "FREE_AFTER_GRID_MAX_STEPS", 0)
+    short = tries.FREE_AFTER_GRID_MAX_STEPS
+    monkeypatch.setattr(tries, "FREE_AFTER_GRID_MAX_ROBOTS", 0)
     grid_only, grid_stats = plan(_arena(25, 0), PlannerParams(time_limit=30), np.random.default_rng(0))
     assert grid_stats.extra["direct"] == "grid" and len(grid_only.durations) <= short
     assert stats.extra["direct"] == "free-space roadmap"

@@ -7,9 +7,9 @@ from hypothesis import strategies as st
 
 from planner import Plan, PlanInvalid, PlannerParams, check_plan
 from planner.pebble import sample_free_points
-from planner.planning import _drop_idle, _timed
 from planner.problem import Circle, Polygon, Problem
 from planner.schedule import merge_steps, schedule, shortcut, split_moves, steps_of
+from planner.timing import _drop_idle, _timed
 from planner.upump import build_roadmap, retrieve
 
 
