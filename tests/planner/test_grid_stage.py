@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -412,3 +413,25 @@ def test_grid_tries_stop_when_the_tie_breaks_change_nothing():
         counts.append(len(calls))
     assert counts == [4, gs.GRID_TRIES]
     assert gs.try_work(100, 10_000, 50, True) == pytest.approx(0.15e-6 * 1e6 + 6e-6 * 5000)
+
+
+def test_a_grid_plan_made_mostly_of_snapping_rounds_is_followed_too(monkeypatch):
+    """Over 5 steps, the follow-up runs where the snapping rounds are at least the routing
+    steps (a crowd in an open arena, as in a ROS map's room), and not where the routing
+    dominates (the control: a MovingAI map's scattered robots, 2 rounds and 8 steps)."""
+    import planner.tries as tries
+    from planner.params import PlannerParams as Params
+
+    p = _arena(25, 0)
+    calls = []
+    monkeypatch.setattr(tries, "_free_space", lambda *a, **k: calls.append("free"))
+    monkeypatch.setattr(tries, "_lattice", lambda *a, **k: calls.append("lattice"))
+    for info, ran in (({"snap_rounds": 14, "route_steps": 2}, True), ({"snap_rounds": 2, "route_steps": 8}, False)):
+        calls.clear()
+        out = tries._Direct()
+        w = np.stack([p.start] * 9)  # 8 steps: over FREE_AFTER_GRID_MAX_STEPS
+        out.offer("grid", 8, (w, 8, 99.0))
+        tries._after_grid(p, Params(), out, info, time.perf_counter(), time.perf_counter() + 30,
+                          np.random.default_rng(0), lattice=True)
+        assert (calls == ["free", "lattice"]) if ran else not calls
+        assert out.best[3] == "grid"
