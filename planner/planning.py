@@ -142,10 +142,11 @@ def plan(problem: Problem, params: PlannerParams | None = None, rng: np.random.G
     else:  # about a second at 1000 robots: the time limit comes first (the stats keep NaN)
         stats.extra["lower_bounds"] = (f"not computed: they take about {need:.2g} s and "
                                        f"{max(left, 0.0):.2g} s of the time limit was left")
-    end = _bounds_end(t0, limit)
     if stats.extra.get("direct") == "grid":  # elsewhere it would cost more than the plan
+        end = _bounds_end(t0, limit)
         _geo_bound(problem, stats, end, limit)
     else:
+        end = _bounds_end(t0, limit, least=0.05)
         stats.extra["geo_lower_bound"] = "not computed: grid worlds only (planner.geobound.geo_lower_bound)"
     _cut_bound(problem, stats, end, limit)
     stats.planning_time_s = time.perf_counter() - t0
