@@ -143,13 +143,20 @@ def test_geo_bound_exceeds_the_straight_bound_on_a_maze():
 def _rooms_scattered(m: int, seed: int) -> Problem:
     """16 x 16 cells in four rooms (walls through the middle, a door one cell wide in
     each), starts and targets scattered over the free space: off every grid."""
-    from planner.scatter import scatter
 
     blocked = np.zeros((16, 16), bool)
     blocked[8, :] = blocked[:, 8] = True
     for r, c in ((8, 3), (8, 12), (3, 8), (12, 8)):
         blocked[r, c] = False
-    shell = _cells_problem(blocked, [(0, 0)], [(0, 0)])
+    return _scattered(blocked, (0, 0), m, seed)
+
+
+def _scattered(blocked: np.ndarray, free_cell, m: int, seed: int) -> Problem:
+    """The cells of ``blocked`` with ``m`` starts and ``m`` targets scattered over the free
+    space (``free_cell`` one free cell; radius 1, margin 0.1)."""
+    from planner.scatter import scatter
+
+    shell = _cells_problem(blocked, [free_cell], [free_cell])
     rng = np.random.default_rng(seed)
     s = scatter(shell.env, m, shell.separation, shell.clearance, rng)
     g = scatter(shell.env, m, shell.separation, shell.clearance, rng)
@@ -196,18 +203,13 @@ def test_scattered_robots_on_a_map_are_snapped_onto_its_cells_and_routed(monkeyp
 def _arena(m: int, seed: int) -> Problem:
     """16 x 16 cells, a band of 3 blocked all round (a ROS map's unknown space) and four
     pillars in the open arena; starts and targets scattered: off every grid."""
-    from planner.scatter import scatter
 
     blocked = np.zeros((16, 16), bool)
     blocked[:3] = blocked[-3:] = True
     blocked[:, :3] = blocked[:, -3:] = True
     for r, c in ((6, 6), (6, 9), (9, 6), (9, 9)):
         blocked[r, c] = True
-    shell = _cells_problem(blocked, [(3, 3)], [(3, 3)])
-    rng = np.random.default_rng(seed)
-    s = scatter(shell.env, m, shell.separation, shell.clearance, rng)
-    g = scatter(shell.env, m, shell.separation, shell.clearance, rng)
-    return Problem(shell.width, shell.height, shell.obstacles, 1.0, 0.1, s, g)
+    return _scattered(blocked, (3, 3), m, seed)
 
 
 def test_a_short_snapped_grid_plan_is_followed_by_the_free_space_roadmap(monkeypatch):
