@@ -153,7 +153,7 @@ def test_lattice_keeps_the_shortest_shift(monkeypatch):
     monkeypatch.setattr(tries, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
     out = planning._Direct()
     tries._lattice(p, out, time.perf_counter() + 30)
-    spans = [planning._makespan(p, planning.merge_steps(p, w, None)) for w in _fake_lattices(p, [8, 0.5, 6])]
+    spans = [planning._makespan(p, tries.merge_steps(p, w, None)) for w in _fake_lattices(p, [8, 0.5, 6])]
     assert out.best[2] == pytest.approx(min(spans)) and min(spans) < spans[0]
 
 
@@ -167,7 +167,7 @@ def test_lattice_stops_at_a_good_enough_plan(monkeypatch):
     monkeypatch.setattr(tries, "lattice_candidates", lambda problem, deadline: _fake_lattices(problem, [8, 0.5, 6]))
     out = planning._Direct()
     tries._lattice(p, out, time.perf_counter() + 30)
-    first = planning._makespan(p, planning.merge_steps(p, next(_fake_lattices(p, [8])), None))
+    first = planning._makespan(p, tries.merge_steps(p, next(_fake_lattices(p, [8])), None))
     assert out.best[2] == pytest.approx(first)
 
 
