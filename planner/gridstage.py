@@ -105,8 +105,11 @@ TRY_S_PER_ROBOT_STEP = 6e-6
 #: Tries estimated to cost more than this [s] are not repeated for an assignment whose first
 #: try with random tie-breaks routed exactly as its plain one (big sparse maps, where ties
 #: seldom meet); cheaper ones run their full count (on room-32-32-4 at 50 robots the first
-#: random try routes as the plain one and a later one is 5 % shorter).
-SETTLE_WORK_S = 0.1
+#: random try routes as the plain one and a later one is 5 % shorter; estimated 0.006 s).
+#: From 0.1 to 0.04 s: the same plans on 42 map rows at 100 to 400 robots, and the 256 x 256
+#: maps at 100 robots twice as fast (Paris_1_256 3.4 -> 1.7 s: a try there costs 0.2 s,
+#: four times its estimate).
+SETTLE_WORK_S = 0.04
 
 
 def try_work(m: int, vertices: int, steps: int, first: bool) -> float:
