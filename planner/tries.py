@@ -187,14 +187,16 @@ CLUTTER = 10
 #: many steps (the snapping rounds and a short routing between them), or it took at least as
 #: many snapping rounds as routing steps (a crowd in an open arena), with at most
 #: :data:`FREE_AFTER_GRID_MAX_ROBOTS` robots and :data:`FREE_AFTER_GRID_MAX_OBSTACLES`
-#: obstacles, the free-space roadmap and a lattice (from :data:`LATTICE_MIN_ROBOTS` robots)
-#: are tried after it (:func:`_after_grid`), for :data:`FREE_AFTER_GRID_MIN_S` or twice the grid stage's time,
-#: whichever is longer; the shortest plan is kept (scattered robots in the turtlebot3 arena
-#: of Nav2's maps: 2.45x -> 1.67x the bound at 20).
+#: obstacles, the free-space roadmap and a lattice (from ``planning.LATTICE_MIN_ROBOTS``
+#: robots) are tried after it (:func:`_after_grid`), for :data:`FREE_AFTER_GRID_MIN_S` or
+#: twice the grid stage's time, whichever is longer; the shortest plan is kept (scattered
+#: robots in the turtlebot3 arena of Nav2's maps: 2.45x -> 1.67x the bound at 20).
 FREE_AFTER_GRID_MAX_STEPS = 5
 FREE_AFTER_GRID_MAX_ROBOTS = 150
 FREE_AFTER_GRID_MAX_OBSTACLES = 500
-FREE_AFTER_GRID_MIN_S = 4.0  # the roadmap's set-up alone takes 0.9 to 1.8 s in that arena, its routing up to 2 s more
+#: the roadmap's set-up alone takes 0.9 to 1.8 s in that arena, its routing up to 2 s more
+FREE_AFTER_GRID_MIN_S = 4.0
+
 
 def _after_grid(problem: Problem, params, out: _Direct, info: dict, t_grid: float, deadline: float, rng,
                 lattice: bool) -> None:
