@@ -57,10 +57,31 @@ __all__ = ["BEST_OF_SHARE", "FLOW_SETTINGS", "FLOW_STEPS", "dense_plan", "flow",
 
 #: Steps a flow may take before it gives up.
 FLOW_STEPS = 300
+# Lengths below are for the separation of 2.1 (robots of radius 1, margin 0.1) and
+# scale with a problem's separation (:func:`_unit`).
+_REF_SEPARATION = 2.1
 _EPS = 0.03  # pairs pushed apart to separation + _EPS
 _H = 0.15  # longest move of a flow step
 _SNAP = 1e-3  # a robot this close to its site lands on it
 _PATIENCE = 8  # flow steps without a better matched distance before noise
+
+
+def _unit(problem: Problem) -> float:
+    """The factor from the module's lengths (at separation 2.1) to ``problem``'s."""
+    return problem.separation / _REF_SEPARATION
+
+
+def _box(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """The corners ``lo``, ``hi`` of the box of centres clear of the walls, rounded inwards:
+    ``width - hi[0] >= clearance`` holds in floating point too (``width - clearance`` can
+    round to a point a few 1e-16 too close, and the exact step test then refuses every
+    joined step of a robot pushed against the right or top wall)."""
+    c = problem.clearance
+    lo, hi = np.full(2, c), np.array([problem.width - c, problem.height - c])
+    for k, side in enumerate((problem.width, problem.height)):
+        while side - hi[k] < c:
+            hi[k] = np.nextafter(hi[k], -np.inf)
+    return lo, hi
 
 
 def _brick(wx: float, wy: float, sep: float) -> np.ndarray | None:
@@ -131,9 +152,11 @@ def _push(problem: Problem, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, eps: 
 def flow(problem: Problem, x: np.ndarray, sites: np.ndarray, deadline: float,
          rng: np.random.Generator, h: float = _H, eps: float = _EPS) -> list[np.ndarray] | None:
     """Waypoints from the placement ``x`` to one on ``m`` of ``sites`` (every step exactly
-    clear), or ``None`` past :data:`FLOW_STEPS` steps or the deadline."""
-    lo = np.full(2, problem.clearance)
-    hi = np.array([problem.width, problem.height]) - problem.clearance
+    clear), or ``None`` past :data:`FLOW_STEPS` steps or the deadline.  ``h`` and ``eps``
+    are at the separation 2.1 and scale with ``problem``'s (:func:`_unit`)."""
+    unit = _unit(problem)
+    h, eps, snap = h * unit, eps * unit, _SNAP * unit
+    lo, hi = _box(problem)
     if len(sites) > 1:
         # pairs pushed apart beyond the sites' own spacing could never settle on them (a
         # square grid of 18 x 18 in a box of side 38.4 is 2.13 apart, for a separation of 2.1:
@@ -155,11 +178,11 @@ def flow(problem: Problem, x: np.ndarray, sites: np.ndarray, deadline: float,
         cost = float((left**2).sum())
         best, since = (cost, 0) if cost < best - 1e-9 else (best, since + 1)
         if since >= _PATIENCE:  # stalled: shake the headings of the robots not yet on their sites
-            off = left > _SNAP
+            off = left > snap
             v[off] += rng.normal(0.0, h * min(1.0, 0.2 * (since - _PATIENCE + 1)), (int(off.sum()), 2))
             left = np.linalg.norm(v, axis=1)
         nxt = _push(problem, x + v * np.minimum(1.0, h / np.maximum(left, 1e-300))[:, None], lo, hi, eps)
-        near = np.linalg.norm(nxt - goal, axis=1) < _SNAP
+        near = np.linalg.norm(nxt - goal, axis=1) < snap
         nxt[near] = goal[near]
         while len(bad := step_ok(problem, x, nxt)):
             stay = np.unique(bad)
