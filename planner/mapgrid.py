@@ -16,27 +16,16 @@ import numpy as np
 from .grid import Lattice, _in_rectangles, grid_graph
 from .problem import Problem
 
-__all__ = ["Lines", "build_grid", "detect_grid", "door_lines", "find_grid", "map_grid"]
+__all__ = ["Lines", "build_grid", "detect_grid", "door_lines", "find_grid", "map_cell", "map_grid", "robot_cells"]
 
 _TOL = 1e-9
 _MAX_VERTICES = 1_100_000  # grid points the grid stage builds at most
 
 
-def map_grid(problem: Problem) -> tuple[np.ndarray, float] | Lines | None:
-    """``(offset, spacing c)`` of the cell centres of a map of cells, from its obstacles, or ``None``.
-
-    A map's obstacles are axis-aligned rectangles whose sides lie on the cell
-    lines ``o + s * integers`` (:func:`sim.scenario.maps.cover`).  The cell
-    ``s`` is found as in :func:`detect_grid` from the sides' coordinates; every
-    rectangle side must lie on those lines, and at least 9 in 10 obstacles must be such
-    rectangles.  The grid is the cell centres ``o + s / 2 + c * integers`` with
-    ``c`` the smallest multiple of ``s`` at least the separation (``c = s`` for
-    cells a robot fills, as in the MovingAI benchmark).  It is what
-    :func:`grid_waypoints` routes on when the starts or targets lie off every
-    grid (scattered over the free space): they are first snapped onto it.  Cells finer
-    than the separation (an occupancy grid) on a map of at most :data:`_LINE_CELLS`
-    cells give uneven grid lines instead (:class:`Lines`, :func:`door_lines`).
-    """
+def map_cell(problem: Problem) -> tuple[np.ndarray, float] | None:
+    """``(origin, s)``: the cell lines ``origin + s * integers`` on which every side of a
+    map's rectangles lies (see :func:`map_grid`), or ``None`` when the obstacles are not
+    a map of cells."""
     obs = problem.obstacles
     rects = []
     for o in obs:
@@ -61,6 +50,38 @@ def map_grid(problem: Problem) -> tuple[np.ndarray, float] | Lines | None:
             break
     else:
         return None
+    return origin, s
+
+
+def robot_cells(problem: Problem) -> bool:
+    """Whether the obstacles are a map of cells that each hold one robot and no more
+    (a side from one separation to twice it, as in the MovingAI benchmark): there the
+    grid stage routes robots cell by cell; an occupancy grid of finer cells, or of cells
+    several robots wide, is free space like any other."""
+    cell = map_cell(problem)
+    sep = problem.separation
+    return cell is not None and sep * (1 - 1e-9) <= cell[1] < 2 * sep
+
+
+def map_grid(problem: Problem) -> tuple[np.ndarray, float] | Lines | None:
+    """``(offset, spacing c)`` of the cell centres of a map of cells, from its obstacles, or ``None``.
+
+    A map's obstacles are axis-aligned rectangles whose sides lie on the cell
+    lines ``o + s * integers`` (:func:`sim.scenario.maps.cover`).  The cell
+    ``s`` is found as in :func:`detect_grid` from the sides' coordinates; every
+    rectangle side must lie on those lines, and at least 9 in 10 obstacles must be such
+    rectangles.  The grid is the cell centres ``o + s / 2 + c * integers`` with
+    ``c`` the smallest multiple of ``s`` at least the separation (``c = s`` for
+    cells a robot fills, as in the MovingAI benchmark).  It is what
+    :func:`grid_waypoints` routes on when the starts or targets lie off every
+    grid (scattered over the free space): they are first snapped onto it.  Cells finer
+    than the separation (an occupancy grid) on a map of at most :data:`_LINE_CELLS`
+    cells give uneven grid lines instead (:class:`Lines`, :func:`door_lines`).
+    """
+    cell = map_cell(problem)
+    if cell is None:
+        return None
+    origin, s = cell
     mult = max(1, math.ceil(problem.separation / s - 1e-9))
     c = s * mult
     if not (problem.width / c) * (problem.height / c) <= _MAX_VERTICES:
