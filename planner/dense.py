@@ -38,6 +38,14 @@ the robots are never far from some 50 of them.
    clear (:func:`planner.merge.merge_steps`) and the whole plan passes
    :func:`planner.validate.check_plan` before it is returned; anything
    that fails returns ``None``.
+
+Among obstacles (a hall with pillars, the arena of a ROS map): the lattices' points
+are kept where they are clear of the obstacles, and shifted copies at the
+separation join the candidates (the roomiest few are tried); a flow step that is
+not clear of the obstacles keeps its robot where it was, and a robot pushed closer
+than the clearance to an obstacle is moved back out along the clearance's
+gradient.  Where a lattice has room to spare, auto mode tries :mod:`planner.packmeet`
+(both placements onto one square lattice, the grid stage between them) first.
 """
 
 from __future__ import annotations
@@ -51,9 +59,9 @@ from scipy.spatial import cKDTree
 
 from .geometry import closest_approach
 from .plan import Plan
-from .problem import Problem
+from .problem import Polygon, Problem
 
-__all__ = ["BEST_OF_SHARE", "FLOW_SETTINGS", "FLOW_STEPS", "dense_plan", "flow", "packing_sites", "step_ok"]
+__all__ = ["BEST_OF_SHARE", "FLOW_SETTINGS", "FLOW_STEPS", "dense", "dense_plan", "flow", "packing_sites", "step_ok"]
 
 #: Steps a flow may take before it gives up.
 FLOW_STEPS = 300
@@ -64,6 +72,32 @@ _EPS = 0.03  # pairs pushed apart to separation + _EPS
 _H = 0.15  # longest move of a flow step
 _SNAP = 1e-3  # a robot this close to its site lands on it
 _PATIENCE = 8  # flow steps without a better matched distance before noise
+_MAX_LATTICES = 4  # lattices tried among obstacles (the ones with the most clear points)
+
+
+def _shapes(problem: Problem) -> list:
+    import shapely
+
+    return [shapely.Polygon(o.vertices) if isinstance(o, Polygon) else shapely.Point(o.center).buffer(o.radius, 16)
+            for o in problem.obstacles]
+
+
+def dense(problem: Problem, threshold: float) -> bool:
+    """Whether the robots' discs cover at least ``threshold`` of the workspace's area
+    outside the obstacles (their union, clipped to the workspace; not computed where the
+    sum of the obstacles' areas already shows the coverage below ``threshold``)."""
+    import shapely
+
+    box = problem.width * problem.height
+    discs = problem.m * math.pi * problem.radius**2
+    if not problem.obstacles:
+        return discs >= threshold * box
+    shapes = _shapes(problem)
+    least_free = box - sum(s.area for s in shapes)  # overlaps counted twice: at most the free area
+    if least_free > 0 and discs < threshold * least_free:
+        return False
+    taken = shapely.union_all(shapes).intersection(shapely.box(0, 0, problem.width, problem.height)).area
+    return discs >= threshold * (box - taken)
 
 
 def _unit(problem: Problem) -> float:
@@ -111,14 +145,38 @@ def packing_sites(problem: Problem) -> list[np.ndarray]:
     out = [np.stack(np.meshgrid(gx, gy, indexing="ij"), axis=-1).reshape(-1, 2), _brick(wx, wy, sep)]
     across = _brick(wy, wx, sep)
     out.append(None if across is None else across[:, ::-1])
+    out = [None if s is None else s + lo for s in out]
+    if problem.obstacles:  # obstacles take points: the lattices at their own spacing, shifted too
+        out += _shifted(problem, lo, wx, wy)
     keep = []
     for s in out:
         if s is None:
             continue
-        s = s[problem.env.points_clear(s + lo, problem.clearance)] + lo
+        s = s[problem.env.points_clear(s, problem.clearance)]
         if len(s) >= problem.m and (len(s) < 2 or cKDTree(s).query(s, 2)[0][:, 1].min() >= sep):
             keep.append(s)
+    if problem.obstacles:  # the roomiest first, a few
+        keep = sorted(keep, key=len, reverse=True)[:_MAX_LATTICES]
     return keep
+
+
+def _shifted(problem: Problem, lo: float, wx: float, wy: float) -> list[np.ndarray]:
+    """The square and brick lattices at the separation (a hair more), shifted by thirds of
+    it along both axes: among obstacles a shift can hold many more clear points."""
+    sep = problem.separation * (1 + 1e-9)
+    square = np.stack(np.meshgrid(np.arange(int(wx // sep) + 2) * sep, np.arange(int(wy // sep) + 2) * sep,
+                                  indexing="ij"), axis=-1).reshape(-1, 2)
+    brick = _brick(wx + sep, wy + sep, sep)
+    out = []
+    for base in (square, brick):
+        if base is None:
+            continue
+        for fx in (0.0, 1 / 3, 2 / 3):
+            for fy in (0.0, 1 / 3, 2 / 3):
+                pts = base + lo - sep * np.array([fx, fy])
+                inside = (pts[:, 0] >= lo) & (pts[:, 1] >= lo) & (pts[:, 0] <= lo + wx) & (pts[:, 1] <= lo + wy)
+                out.append(pts[inside])
+    return out
 
 
 def step_ok(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -146,13 +204,62 @@ def _push(problem: Problem, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, eps: 
         np.add.at(x, i, push)
         np.add.at(x, j, -push)
         x = np.clip(x, lo, hi)
+    if problem.obstacles:
+        x = _off_obstacles(problem, x, eps)
     return x
 
 
+def _off_obstacles(problem: Problem, x: np.ndarray, eps: float) -> np.ndarray:
+    """Centres pushed closer than the clearance to an obstacle moved back out along the
+    clearance's gradient (central differences of the exact clearance) to ``clearance +
+    eps``; a centre inside an obstacle (no gradient) is left for the step test, which
+    keeps it where it was.  Centres still clear stay put: a site next to an obstacle
+    stays reachable (pushing every centre nearer than ``clearance + eps`` kept robots
+    off such sites for good)."""
+    env, c = problem.env, problem.clearance
+    clr = env.point_clearance(x)
+    near = np.flatnonzero((clr < c) & (clr > 0))
+    if len(near) == 0:
+        return x
+    p = x[near]
+    d = 1e-6 * problem.separation
+    grad = np.stack([env.point_clearance(p + [d, 0]) - env.point_clearance(p - [d, 0]),
+                     env.point_clearance(p + [0, d]) - env.point_clearance(p - [0, d])], axis=1) / (2 * d)
+    norm = np.linalg.norm(grad, axis=1)
+    ok = norm > 0.5  # the wall or an obstacle, not a ridge between two
+    x = x.copy()
+    want = c + eps
+    x[near[ok]] += ((want - clr[near[ok]]) / norm[ok])[:, None] * grad[ok]
+    return x
+
+
+_NEAR_SITES = 16  # sites per robot in the sparse matching (:func:`_assign`)
+
+
+def _assign(x: np.ndarray, sites: np.ndarray) -> np.ndarray:
+    """The site of every robot in the minimum sum-of-squares matching.  With many more sites
+    than robots (at least twice as many) the matching is first sought among each robot's
+    :data:`_NEAR_SITES` nearest sites (a sparse problem, exact on that graph), and the full
+    one only where that has no complete matching."""
+    m, n = len(x), len(sites)
+    if n >= 2 * m and n > _NEAR_SITES:
+        from scipy.sparse import csr_matrix
+        from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+
+        d, j = cKDTree(sites).query(x, _NEAR_SITES)
+        graph = csr_matrix((d.ravel() ** 2 + 1e-300, (np.repeat(np.arange(m), _NEAR_SITES), j.ravel())), shape=(m, n))
+        try:
+            return min_weight_full_bipartite_matching(graph)[1]
+        except ValueError:  # no complete matching among the nearest sites
+            pass
+    return linear_sum_assignment(((x[:, None] - sites[None]) ** 2).sum(axis=2))[1]
+
+
 def flow(problem: Problem, x: np.ndarray, sites: np.ndarray, deadline: float,
-         rng: np.random.Generator, h: float = _H, eps: float = _EPS) -> list[np.ndarray] | None:
+         rng: np.random.Generator, h: float = _H, eps: float = _EPS, steps: int = FLOW_STEPS
+         ) -> list[np.ndarray] | None:
     """Waypoints from the placement ``x`` to one on ``m`` of ``sites`` (every step exactly
-    clear), or ``None`` past :data:`FLOW_STEPS` steps or the deadline.  ``h`` and ``eps``
+    clear), or ``None`` past ``steps`` steps or the deadline.  ``h`` and ``eps``
     are at the separation 2.1 and scale with ``problem``'s (:func:`_unit`)."""
     unit = _unit(problem)
     h, eps, snap = h * unit, eps * unit, _SNAP * unit
@@ -166,10 +273,10 @@ def flow(problem: Problem, x: np.ndarray, sites: np.ndarray, deadline: float,
     x = np.array(x, float)
     out = [x.copy()]
     best, since = np.inf, 0
-    for _ in range(FLOW_STEPS):
+    for _ in range(steps):
         if time.perf_counter() > deadline:
             return None
-        _, col = linear_sum_assignment(((x[:, None] - sites[None]) ** 2).sum(axis=2))
+        col = _assign(x, sites)
         goal = sites[col]
         v = goal - x
         left = np.linalg.norm(v, axis=1)
@@ -184,6 +291,10 @@ def flow(problem: Problem, x: np.ndarray, sites: np.ndarray, deadline: float,
         nxt = _push(problem, x + v * np.minimum(1.0, h / np.maximum(left, 1e-300))[:, None], lo, hi, eps)
         near = np.linalg.norm(nxt - goal, axis=1) < snap
         nxt[near] = goal[near]
+        if problem.obstacles:  # a move that is not clear of the obstacles: the robot stays
+            moved = np.flatnonzero(np.any(nxt != x, axis=1))
+            blocked = moved[~problem.env.segments_clear(x[moved], nxt[moved], problem.clearance)]
+            nxt[blocked] = x[blocked]
         while len(bad := step_ok(problem, x, nxt)):
             stay = np.unique(bad)
             nxt[stay] = x[stay]
@@ -215,21 +326,34 @@ FLOW_SETTINGS = ((0.15, 0.1), (0.25, 0.1), (0.15, 0.03), (0.25, 0.03), (0.1, 0.1
 BEST_OF_SHARE = 0.25
 
 
-def dense_plan(problem: Problem, time_limit: float, rng: np.random.Generator,
-               deadline: float | None = None) -> Plan | None:
-    """The shortest of the plans through a lattice (see the module docstring) found by the
-    tries of :data:`FLOW_SETTINGS`, each lattice and both ways, every one of which passed
-    the exact validator; ``None`` (obstacles, no lattice fits, every flow stalled, or the
-    time limit).  After the first plan, tries go on within :data:`BEST_OF_SHARE` of the
-    limit."""
+def _better(problem: Problem, w, best: Plan | None, deadline: float) -> Plan | None:
+    """The plan of raw waypoints ``w`` (merged, exactly validated) when shorter than ``best``."""
     from .merge import merge_steps
     from .timing import _drop_idle
     from .validate import PlanInvalid, check_plan
 
+    if w is None:
+        return None
+    w = merge_steps(problem, _drop_idle(list(w)), deadline)
+    result = Plan.from_waypoints(w, problem.radius, problem.margin, problem.max_speed, problem.max_accel)
+    if best is not None and result.makespan >= best.makespan:
+        return None
+    try:
+        check_plan(problem, result)
+    except PlanInvalid:  # never expected: every step was checked
+        return None
+    return result
+
+
+def dense_plan(problem: Problem, time_limit: float, rng: np.random.Generator,
+               deadline: float | None = None) -> Plan | None:
+    """The shortest of the plans through a lattice (see the module docstring) found by the
+    tries of :data:`FLOW_SETTINGS`, each lattice and both ways, every one of which passed
+    the exact validator; ``None`` (no lattice fits, every flow stalled, or the time
+    limit).  After the first plan, tries go on within :data:`BEST_OF_SHARE` of the
+    limit."""
     t0 = time.perf_counter()
     deadline = min(t0 + time_limit, deadline if deadline is not None else math.inf)
-    if problem.obstacles:
-        return None
     best = None
     for h, eps in FLOW_SETTINGS:
         for sites in packing_sites(problem):
@@ -241,15 +365,5 @@ def dense_plan(problem: Problem, time_limit: float, rng: np.random.Generator,
                 onto = flow(problem, a, sites, deadline, rng, h, eps)
                 into = None if onto is None else flow(problem, b, onto[-1], deadline, rng, h, eps)
                 w = None if into is None else _joined(into, onto) if target_first else _joined(onto, into)
-                if w is None:
-                    continue
-                w = merge_steps(problem, _drop_idle(list(w)), deadline)
-                result = Plan.from_waypoints(w, problem.radius, problem.margin, problem.max_speed, problem.max_accel)
-                if best is not None and result.makespan >= best.makespan:
-                    continue
-                try:
-                    check_plan(problem, result)
-                except PlanInvalid:  # never expected: every step was checked
-                    continue
-                best = result
+                best = _better(problem, w, best, deadline) or best
     return best

@@ -10,9 +10,11 @@ from scipy.optimize import linear_sum_assignment
 from .bounds import lower_bounds
 from .connect import sequenced_moves
 from .conveyor import DOOR_MIN_ROBOTS
+from .dense import dense
 from .feasibility import feasibility
 from .gridstage import find_grid, grid_plan
 from .guide import Late
+from .mapgrid import robot_cells
 from .params import PlannerParams
 from .plan import Plan, PlanStats
 from .problem import Problem
@@ -23,6 +25,7 @@ from .tries import (
     _after_grid,
     _bounds_end,
     _cut_bound,
+    _dense,
     _Direct,
     _door,
     _free_space,
@@ -204,6 +207,10 @@ LATTICE_MIN_ROBOTS = 60
 GRID_MIN_ROBOTS = 12
 
 DENSE_COVERAGE = 0.3  #: robots' discs over an obstacle-free workspace from which the packing stage (planner.dense) runs
+#: Robots' discs over the workspace's area outside the obstacles from which the packing stage
+#: runs among obstacles, first (unless they are a map of cells a robot fills,
+#: :func:`planner.mapgrid.robot_cells`), its plan then competing with the others'.
+DENSE_AMONG_OBSTACLES = 0.2
 
 #: From this many robots on, auto mode does not build the pebble-graph roadmap when its
 #: direct tries found nothing: its interference graphs grow with the square of the
@@ -249,6 +256,9 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             return out
     if problem.m >= GRID_MIN_ROBOTS and time.perf_counter() < deadline:
         grid = find_grid(problem)
+        if (problem.obstacles and (grid is None or grid[1]) and dense(problem, DENSE_AMONG_OBSTACLES)
+                and not robot_cells(problem)):
+            _dense(problem, out, deadline, rng)  # before snapping onto a coarser grid, which packs worse
         if grid is not None:  # starts and targets on one grid, or a map of cells: route on it
             t_grid, info = time.perf_counter(), {}
             found = grid_plan(problem, deadline, grid[0], rng, info=info)
@@ -262,7 +272,7 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
                 return out
     if on_grid_fail is not None and time.perf_counter() < deadline:
         on_grid_fail()  # raises NoPlanFound when no plan exists
-    if (not problem.obstacles and problem.m * np.pi * problem.radius**2 >= DENSE_COVERAGE * problem.width * problem.height
+    if (not problem.obstacles and dense(problem, DENSE_COVERAGE)
             and time.perf_counter() < deadline):
         from .dense import dense_plan  # packings too dense for the other stages
         found_plan = dense_plan(problem, deadline - time.perf_counter(), rng)
