@@ -23,6 +23,8 @@ vertices must be separated); the pumped free vertices make up for them.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -79,14 +81,26 @@ def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
     return pts[problem.env.points_clear(pts, problem.clearance)]
 
 
-def _visible(problem: Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(len(a), len(b))`` mask of clear straight segments."""
+#: Segments tested per call in :func:`_visible` (its memory grows with them; 810 000 at once,
+#: 900 robots to 900 targets among a room's walls, took 2.7 GB and 14 s past any deadline)
+_VISIBLE_CHUNK = 50_000
+
+
+def _visible(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float | None = None) -> np.ndarray:
+    """``(len(a), len(b))`` mask of clear straight segments, tested in chunks of rows;
+    raises :class:`Late` when ``deadline`` passes between two chunks."""
+    out = np.zeros((len(a), len(b)), bool)
     if len(a) == 0 or len(b) == 0:
-        return np.zeros((len(a), len(b)), bool)
-    aa = np.repeat(a, len(b), axis=0)
-    bb = np.tile(b, (len(a), 1))
-    ok = problem.env.segments_clear(aa, bb, problem.clearance)
-    return ok.reshape(len(a), len(b))
+        return out
+    rows = max(1, _VISIBLE_CHUNK // len(b))
+    for r in range(0, len(a), rows):
+        if deadline is not None and time.perf_counter() > deadline:
+            raise Late("straight segments: past the deadline")
+        part = a[r : r + rows]
+        aa = np.repeat(part, len(b), axis=0)
+        bb = np.tile(b, (len(part), 1))
+        out[r : r + rows] = problem.env.segments_clear(aa, bb, problem.clearance).reshape(len(part), len(b))
+    return out
 
 
 #: Corner pairs tested for visibility at most (about): with more corners only
@@ -182,11 +196,13 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, de
     return result
 
 
-def straight_lengths(problem: Problem, starts: np.ndarray, targets: np.ndarray) -> np.ndarray:
+def straight_lengths(problem: Problem, starts: np.ndarray, targets: np.ndarray,
+                     deadline: float | None = None) -> np.ndarray:
     """``(len(starts), len(targets))`` straight distances, ``inf`` where the segment is not clear.
 
     Remembered per problem and pair of placements (the straight and the
     bent sequenced moves, and the shortest paths, all start from it).
+    Raises :class:`Late` (nothing remembered) when ``deadline`` passes first.
     """
     starts = np.ascontiguousarray(starts, float)
     targets = np.ascontiguousarray(targets, float)
@@ -195,7 +211,7 @@ def straight_lengths(problem: Problem, starts: np.ndarray, targets: np.ndarray) 
     if key not in memo:
         direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
         if problem.obstacles:
-            direct = np.where(_visible(problem, starts, targets), direct, np.inf)
+            direct = np.where(_visible(problem, starts, targets, deadline), direct, np.inf)
         memo[key] = direct
     return memo[key]
 
@@ -208,7 +224,7 @@ def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, d
     from scipy.sparse.csgraph import dijkstra
 
     corners, graph_cc = _corner_graph(problem, deadline)
-    direct = straight_lengths(problem, starts, targets)
+    direct = straight_lengths(problem, starts, targets, deadline)
     if len(corners) == 0:
         return direct, lambda i, j: np.stack([starts[i], targets[j]])
     m, c, n = len(starts), len(corners), len(targets)

@@ -90,7 +90,7 @@ def sequenced_moves(problem: Problem, va: np.ndarray, vb: np.ndarray, bent: bool
     if bent and problem.obstacles:
         length, path_of = shortest_paths(problem, va, vb, deadline)
     else:
-        length = straight_lengths(problem, va, vb)
+        length = straight_lengths(problem, va, vb, deadline)
     big = 1e18
     cost = np.where(np.isfinite(length), length**2, big)
     rows, cols = linear_sum_assignment(cost)
