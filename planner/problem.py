@@ -163,8 +163,12 @@ def check_placement(problem: Problem, points: np.ndarray, field_name: str, tol: 
     if not np.all(np.isfinite(pts)):
         i = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
         raise ProblemError(f"{field_name}[{i}]", "is not a finite point")
-    clear, who = problem.env.point_clearance_detail(pts)
-    bad = np.flatnonzero(clear < problem.clearance - tol)
+    bad: np.ndarray = np.zeros(0, int)
+    # the exact test first (indexed: 0.1 s for 900 robots among 1327 rectangles, where the
+    # clearances took 0.2 s); what a robot hits only when one fails
+    if len(pts) and not problem.env.points_clear(pts, problem.clearance - tol).all():
+        clear, who = problem.env.point_clearance_detail(pts)
+        bad = np.flatnonzero(clear < problem.clearance - tol)
     if len(bad):
         i = int(bad[0])
         hit = describe_obstacle(int(who[i]))

@@ -52,3 +52,19 @@ def test_no_plan_with_the_extra_says_so():
     with pytest.raises(NoPlanFound) as info:
         plan(problem, PlannerParams(margin_extra=0.5, time_limit=1.0), np.random.default_rng(0))
     assert info.value.stats.extra["margin_extra"] == 0.5
+
+
+def test_a_placement_into_an_obstacle_or_wall_is_named_and_a_clear_one_passes():
+    """The exact clearance test runs first; what a robot hits is named only when one fails."""
+    import re
+
+    from planner import Polygon, Problem
+    from planner.problem import ProblemError, check_placement
+
+    block = Polygon(np.array([[4.0, 4.0], [6.0, 4.0], [6.0, 6.0], [4.0, 6.0]]))
+    problem = Problem(10.0, 10.0, (block,), 0.5, 0.1, [[1.0, 1.0]], [[1.0, 1.0]])
+    check_placement(problem, np.array([[1.0, 1.0], [3.3, 5.0], [8.0, 8.0]]), "start")  # 0.7 from the block
+    with pytest.raises(ProblemError, match=re.escape("start[1]: robot 1 at (3.5, 5) hits obstacle 0")):
+        check_placement(problem, np.array([[1.0, 1.0], [3.5, 5.0]]), "start")
+    with pytest.raises(ProblemError, match=re.escape("target[0]: robot 0 at (9.5, 5) hits the")):
+        check_placement(problem, np.array([[9.5, 5.0]]), "target")
