@@ -33,6 +33,13 @@ and ``rng = np.random.default_rng(seed)``; ``--method dense`` is the
 dense-packing stage (:func:`planner.dense.dense_plan`) called directly on
 the same problem with the same time limit, its plan checked by
 :func:`planner.check_plan`.
+
+``--halls N`` runs instead ``N`` halls with pillars (``hall_problem(seed)``, seeds 0 to
+N - 1, ``--method plan``): a workspace of 6 to 16 by 6 to 16, robots of radius 0.15,
+0.2, 0.3 or 0.5 (margin 0.05), 1 to 8 obstacles (discs of radius 0.1 to 0.8 or
+rectangles of sides 0.1 to 2, anywhere), and as many robots as cover 18 % to 38 % of the
+workspace, start and target scattered (:func:`planner.scatter.scatter`), all drawn
+from ``default_rng([5, seed])``; a hall whose robots do not fit is skipped.
 """
 
 from __future__ import annotations
@@ -104,6 +111,32 @@ def packing_problem(m: int = 50, coverage: float = 0.5, seed: int = 0) -> Proble
     return Problem(side, side, (), RADIUS, MARGIN, start, target).validate()
 
 
+def hall_problem(seed: int) -> Problem | None:
+    """A hall with pillars, crowded (see the module docstring), or ``None`` when its robots
+    do not fit."""
+    from planner import Circle, Polygon
+    from planner.scatter import scatter
+
+    rng = np.random.default_rng([5, seed])
+    w, h = rng.uniform(6, 16), rng.uniform(6, 16)
+    r = float(rng.choice([0.15, 0.2, 0.3, 0.5]))
+    obs: list = []
+    for _ in range(rng.integers(1, 9)):
+        if rng.random() < 0.5:
+            obs.append(Circle((rng.uniform(0, w), rng.uniform(0, h)), rng.uniform(0.1, 0.8)))
+        else:
+            x, y, a, b = rng.uniform(0, w), rng.uniform(0, h), rng.uniform(0.1, 2), rng.uniform(0.1, 2)
+            obs.append(Polygon(np.array([[x, y], [x + a, y], [x + a, y + b], [x, y + b]])))
+    shell = Problem(w, h, tuple(obs), r, 0.05, [[w / 2, h / 2]], [[w / 2, h / 2]])
+    m = int(rng.uniform(0.18, 0.38) * w * h / (math.pi * r * r))
+    try:
+        start = scatter(shell.env, m, shell.separation, shell.clearance, rng)
+        target = scatter(shell.env, m, shell.separation, shell.clearance, rng)
+    except ValueError:
+        return None
+    return Problem(w, h, tuple(obs), r, 0.05, start, target).validate()
+
+
 def run(problem: Problem, method: str, seed: int, time_limit: float) -> dict:
     """One row: outcome, time, makespan and makespan over the straight-line bound."""
     from planner import NoPlanFound, PlannerParams, check_plan, feasibility, plan
@@ -127,7 +160,8 @@ def run(problem: Problem, method: str, seed: int, time_limit: float) -> dict:
         check_plan(problem, result)
         bound = lower_bounds(problem)[0]
     return {"outcome": "found", "time_s": time.perf_counter() - t0, "makespan_s": result.makespan,
-            "ratio": result.makespan / bound, "steps": result.steps}
+            "ratio": result.makespan / bound, "steps": result.steps,
+            "stage": stats.extra.get("direct", "roadmap") if method == "plan" else "dense"}
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
@@ -137,11 +171,25 @@ def main(argv: list[str] | None = None) -> list[dict]:
     ap.add_argument("--robots", type=int, default=50)
     ap.add_argument("--time-limit", type=float, default=10.0)
     ap.add_argument("--method", nargs="+", choices=("plan", "dense"), default=["plan", "dense"])
+    ap.add_argument("--halls", type=int, default=0, metavar="N", help="N crowded halls with pillars instead (plan)")
     args = ap.parse_args(argv)
     from ._common import warm_up_planner
 
     warm_up_planner(args.time_limit)
     rows = []
+    if args.halls:
+        for seed in range(args.halls):
+            problem = hall_problem(seed)
+            if problem is None:
+                continue
+            row = {"seed": seed, "world": f"{problem.width:.1f} x {problem.height:.1f}", "radius": problem.radius,
+                   "robots": problem.m, "obstacles": len(problem.obstacles)}
+            row.update(run(problem, "plan", seed, args.time_limit))
+            rows.append(row)
+            print(f"# {row}", flush=True)
+        print(markdown_table(["seed", "world", "radius", "robots", "obstacles", "outcome", "time_s", "makespan_s",
+                              "ratio", "stage"], rows))
+        return rows
     for cov in args.coverage:
         for seed in range(args.seeds):
             problem = packing_problem(args.robots, cov, seed)
