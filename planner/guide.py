@@ -29,6 +29,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .problem import Problem
+from .visible import Late, straight_lengths
 
 __all__ = ["Late", "corner_points", "expanded_placement", "guided_placements", "shortest_paths", "straight_lengths"]
 
@@ -81,28 +82,6 @@ def corner_points(problem: Problem, slack: float = 1.02) -> np.ndarray:
     return pts[problem.env.points_clear(pts, problem.clearance)]
 
 
-#: Segments tested per call in :func:`_visible` (its memory grows with them; 810 000 at once,
-#: 900 robots to 900 targets among a room's walls, took 2.7 GB and 14 s past any deadline)
-_VISIBLE_CHUNK = 50_000
-
-
-def _visible(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float | None = None) -> np.ndarray:
-    """``(len(a), len(b))`` mask of clear straight segments, tested in chunks of rows;
-    raises :class:`Late` when ``deadline`` passes between two chunks."""
-    out = np.zeros((len(a), len(b)), bool)
-    if len(a) == 0 or len(b) == 0:
-        return out
-    rows = max(1, _VISIBLE_CHUNK // len(b))
-    for r in range(0, len(a), rows):
-        if deadline is not None and time.perf_counter() > deadline:
-            raise Late("straight segments: past the deadline")
-        part = a[r : r + rows]
-        aa = np.repeat(part, len(b), axis=0)
-        bb = np.tile(b, (len(part), 1))
-        out[r : r + rows] = problem.env.segments_clear(aa, bb, problem.clearance).reshape(len(part), len(b))
-    return out
-
-
 #: Corner pairs tested for visibility at most (about): with more corners only
 #: pairs closer than a radius are tested, chosen so that about this many are.
 _CORNER_PAIRS = 40_000
@@ -147,17 +126,12 @@ def _near_pairs(problem: Problem, pts: np.ndarray, corners: np.ndarray) -> tuple
     return np.repeat(np.arange(len(pts)), counts), np.fromiter((j for x in lists for j in x), int, int(counts.sum()))
 
 
-class Late(RuntimeError):
-    """The deadline passed before a shortest-path computation ended (nothing is cached)."""
-
-
 def _corner_graph(problem: Problem, deadline: float | None = None):
     """Corner points and their visibility graph as a sparse matrix of lengths (cached).
     Raises :class:`Late` when ``deadline`` passes first."""
     cached = problem.__dict__.get("_corner_graph")
     if cached is not None:
         return cached
-    import time
 
     from scipy.sparse import coo_matrix
 
@@ -194,26 +168,6 @@ def shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, de
         return memo[key]
     memo[key] = result = _shortest_paths(problem, np.asarray(starts, float), np.asarray(targets, float), deadline)
     return result
-
-
-def straight_lengths(problem: Problem, starts: np.ndarray, targets: np.ndarray,
-                     deadline: float | None = None) -> np.ndarray:
-    """``(len(starts), len(targets))`` straight distances, ``inf`` where the segment is not clear.
-
-    Remembered per problem and pair of placements (the straight and the
-    bent sequenced moves, and the shortest paths, all start from it).
-    Raises :class:`Late` (nothing remembered) when ``deadline`` passes first.
-    """
-    starts = np.ascontiguousarray(starts, float)
-    targets = np.ascontiguousarray(targets, float)
-    key = (starts.tobytes(), targets.tobytes())
-    memo = problem.__dict__.setdefault("_straight_lengths", {})
-    if key not in memo:
-        direct = np.linalg.norm(starts[:, None] - targets[None], axis=2)
-        if problem.obstacles:
-            direct = np.where(_visible(problem, starts, targets, deadline), direct, np.inf)
-        memo[key] = direct
-    return memo[key]
 
 
 def _shortest_paths(problem: Problem, starts: np.ndarray, targets: np.ndarray, deadline: float | None = None):

@@ -1,4 +1,4 @@
-"""Straight visibility between placements (planner.guide): chunked, and bounded by a deadline."""
+"""Straight visibility between placements (planner.visible): chunked, and bounded by a deadline."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-import planner.guide as guide
+import planner.visible as visible
 from planner import Polygon, Problem
 
 
@@ -23,10 +23,10 @@ def _walls(m: int) -> Problem:
 
 def test_chunked_visibility_is_the_whole_test(monkeypatch):
     problem = _walls(60)
-    whole = guide._visible(problem, problem.start, problem.target)
+    whole = visible._visible(problem, problem.start, problem.target)
     assert 0 < whole.sum() < whole.size  # the walls hide some pairs, not all
-    monkeypatch.setattr(guide, "_VISIBLE_CHUNK", 7)  # chunks of one row, some rows split never
-    assert np.array_equal(guide._visible(problem, problem.start, problem.target), whole)
+    monkeypatch.setattr(visible, "_VISIBLE_CHUNK", 7)  # chunks of one row, some rows split never
+    assert np.array_equal(visible._visible(problem, problem.start, problem.target), whole)
     aa = np.repeat(problem.start, len(problem.target), axis=0)
     bb = np.tile(problem.target, (len(problem.start), 1))
     direct = problem.env.segment_clearance(aa, bb) >= problem.clearance
@@ -38,9 +38,9 @@ def test_straight_lengths_stop_at_the_deadline(monkeypatch):
     14 s past a 30 s limit.  Now chunks, and a deadline that has passed stops them (nothing
     is remembered, so a later call with time left computes them)."""
     problem = _walls(60)
-    monkeypatch.setattr(guide, "_VISIBLE_CHUNK", 60)
-    with pytest.raises(guide.Late):
-        guide.straight_lengths(problem, problem.start, problem.target, deadline=time.perf_counter() - 1.0)
+    monkeypatch.setattr(visible, "_VISIBLE_CHUNK", 60)
+    with pytest.raises(visible.Late):
+        visible.straight_lengths(problem, problem.start, problem.target, deadline=time.perf_counter() - 1.0)
     assert not problem.__dict__.get("_straight_lengths")
-    got = guide.straight_lengths(problem, problem.start, problem.target, deadline=time.perf_counter() + 60)
+    got = visible.straight_lengths(problem, problem.start, problem.target, deadline=time.perf_counter() + 60)
     assert np.isinf(got).any() and np.isfinite(got).any()
