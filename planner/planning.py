@@ -256,8 +256,8 @@ def _direct(problem: Problem, params: PlannerParams, memo: dict, deadline: float
             return out
     if problem.m >= GRID_MIN_ROBOTS and time.perf_counter() < deadline:
         grid = find_grid(problem)
-        if (problem.obstacles and (grid is None or grid[1]) and dense(problem, DENSE_AMONG_OBSTACLES)
-                and not robot_cells(problem)):
+        if (problem.obstacles and (grid is None or grid[1]) and not robot_cells(problem)
+                and dense(problem, DENSE_AMONG_OBSTACLES)):  # the cheap test first
             _dense(problem, out, deadline, rng)  # before snapping onto a coarser grid, which packs worse
         if grid is not None:  # starts and targets on one grid, or a map of cells: route on it
             t_grid, info = time.perf_counter(), {}
