@@ -62,7 +62,7 @@ import numpy as np
 
 from .problem import Circle, Problem
 
-__all__ = ["MAX_CUTS", "Cut", "best_lower_bound", "crossing_time", "cut_lower_bound", "cuts"]
+__all__ = ["MAX_CUTS", "Cut", "best_lower_bound", "crossing_time", "cut_lower_bound", "cuts", "obstacle_shapes"]
 
 MAX_CUTS = 64  # candidate cuts evaluated, narrowest first
 _QUAD_SEGS = 16
@@ -110,17 +110,21 @@ def _free_space(problem: Problem, grow: float):
     return [g for g in getattr(free, "geoms", [free]) if g.geom_type == "Polygon" and g.area > 0]
 
 
-def _features(problem: Problem) -> list:
-    """Obstacles (circles as inscribed polygons: only where a cut is tried) and the four walls."""
-    from shapely.geometry import LineString, Point
+def obstacle_shapes(problem: Problem) -> list:
+    """The obstacles as shapely polygons (circles inscribed, :data:`_QUAD_SEGS` segments a
+    quarter circle)."""
+    from shapely.geometry import Point
     from shapely.geometry import Polygon as ShapelyPolygon
 
-    out: list = []
-    for ob in problem.obstacles:
-        if isinstance(ob, Circle):
-            out.append(Point(ob.center).buffer(ob.radius, quad_segs=_QUAD_SEGS))
-        else:
-            out.append(ShapelyPolygon(ob.vertices).buffer(0))
+    return [Point(ob.center).buffer(ob.radius, quad_segs=_QUAD_SEGS) if isinstance(ob, Circle)
+            else ShapelyPolygon(ob.vertices).buffer(0) for ob in problem.obstacles]
+
+
+def _features(problem: Problem) -> list:
+    """Obstacles (circles as inscribed polygons: only where a cut is tried) and the four walls."""
+    from shapely.geometry import LineString
+
+    out = obstacle_shapes(problem)
     w, h = problem.width, problem.height
     corners = [(0, 0), (w, 0), (w, h), (0, h)]
     out += [LineString([corners[i], corners[(i + 1) % 4]]) for i in range(4)]

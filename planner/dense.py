@@ -59,7 +59,7 @@ from scipy.spatial import cKDTree
 
 from .geometry import closest_approach
 from .plan import Plan
-from .problem import Polygon, Problem
+from .problem import Problem
 
 __all__ = ["BEST_OF_SHARE", "FLOW_SETTINGS", "FLOW_STEPS", "dense", "dense_plan", "flow", "packing_sites", "step_ok"]
 
@@ -75,13 +75,6 @@ _PATIENCE = 8  # flow steps without a better matched distance before noise
 _MAX_LATTICES = 4  # lattices tried among obstacles (the ones with the most clear points)
 
 
-def _shapes(problem: Problem) -> list:
-    import shapely
-
-    return [shapely.Polygon(o.vertices) if isinstance(o, Polygon) else shapely.Point(o.center).buffer(o.radius, 16)
-            for o in problem.obstacles]
-
-
 def dense(problem: Problem, threshold: float) -> bool:
     """Whether the robots' discs cover at least ``threshold`` of the workspace's area
     outside the obstacles (their union, clipped to the workspace; not computed where the
@@ -92,7 +85,9 @@ def dense(problem: Problem, threshold: float) -> bool:
     discs = problem.m * math.pi * problem.radius**2
     if not problem.obstacles:
         return discs >= threshold * box
-    shapes = _shapes(problem)
+    from .cutbound import obstacle_shapes
+
+    shapes = obstacle_shapes(problem)
     least_free = box - sum(s.area for s in shapes)  # overlaps counted twice: at most the free area
     if least_free > 0 and discs < threshold * least_free:
         return False
