@@ -125,10 +125,11 @@ def _brick(wx: float, wy: float, sep: float) -> np.ndarray | None:
     return np.asarray([((j % 2) * dx / 2 + i * dx, j * dy) for j in range(rows) for i in range(nx - j % 2)], float)
 
 
-def packing_sites(problem: Problem) -> list[np.ndarray]:
+def packing_sites(problem: Problem, deadline: float = math.inf) -> list[np.ndarray]:
     """Lattices of clear points pairwise at least the separation apart, each with at least
     ``m`` points: the square grid spanning the box when it is big enough, then the brick
-    lattice with rows along x and along y (see the module docstring)."""
+    lattice with rows along x and along y (see the module docstring); those tested
+    before ``deadline`` (on a large map each costs about 0.1 s)."""
     sep = problem.separation
     lo = problem.clearance + 1e-9 * max(problem.width, problem.height, 1.0)  # off the walls by a hair
     wx, wy = problem.width - 2 * lo, problem.height - 2 * lo
@@ -147,6 +148,8 @@ def packing_sites(problem: Problem) -> list[np.ndarray]:
     for s in out:
         if s is None:
             continue
+        if time.perf_counter() > deadline:
+            break
         s = s[problem.env.points_clear(s, problem.clearance)]
         if len(s) >= problem.m and (len(s) < 2 or cKDTree(s).query(s, 2)[0][:, 1].min() >= sep):
             keep.append(s)
@@ -212,8 +215,12 @@ def _off_obstacles(problem: Problem, x: np.ndarray, eps: float) -> np.ndarray:
     stays reachable (pushing every centre nearer than ``clearance + eps`` kept robots
     off such sites for good)."""
     env, c = problem.env, problem.clearance
-    clr = env.point_clearance(x)
-    near = np.flatnonzero((clr < c) & (clr > 0))
+    out = np.flatnonzero(~env.points_clear(x, c))  # the indexed exact test first
+    if len(out) == 0:
+        return x
+    clr = np.full(len(x), c)
+    clr[out] = env.point_clearance(x[out])
+    near = out[(clr[out] < c) & (clr[out] > 0)]
     if len(near) == 0:
         return x
     p = x[near]
@@ -350,8 +357,9 @@ def dense_plan(problem: Problem, time_limit: float, rng: np.random.Generator,
     t0 = time.perf_counter()
     deadline = min(t0 + time_limit, deadline if deadline is not None else math.inf)
     best = None
+    lattices = packing_sites(problem, deadline)
     for h, eps in FLOW_SETTINGS:
-        for sites in packing_sites(problem):
+        for sites in lattices:
             for target_first in (True, False):
                 now = time.perf_counter()
                 if now > deadline or (best is not None and now > t0 + BEST_OF_SHARE * time_limit):

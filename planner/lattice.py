@@ -55,6 +55,7 @@ from .grid import _SLACK, Lattice, build_lattice, lattice_spacing
 from .problem import Problem
 from .snappush import pocket_corners, push
 from .tswap import tswap
+from .visible import clear_by
 
 __all__ = ["Lattice", "build_lattice", "lattice_candidates", "lattice_spacing", "lattice_waypoints", "snap", "tswap"]
 
@@ -95,12 +96,12 @@ def _near_segments(problem: Problem, a: np.ndarray, b: np.ndarray, owner: np.nda
 
 
 def _assign(problem: Problem, lat: Lattice, pos: np.ndarray, robots: np.ndarray, taken: np.ndarray,
-            hard: np.ndarray | None = None, k: int = 16) -> np.ndarray | None:
+            hard: np.ndarray | None = None, k: int = 16, deadline: float = math.inf) -> np.ndarray | None:
     """Distinct free lattice vertices for ``robots`` (rows of ``pos``): minimum sum of squared
     distances over each robot's ``k`` nearest vertices that are not ``taken`` and are
     reached by a clear straight move.  A move passing closer than the separation to
     another robot's position is charged a large penalty, and excluded where that
-    robot is marked in ``hard``."""
+    robot is marked in ``hard``.  ``None`` also when ``deadline`` passes."""
     n = len(robots)
     if n == 0:
         return np.zeros(0, int)
@@ -116,7 +117,10 @@ def _assign(problem: Problem, lat: Lattice, pos: np.ndarray, robots: np.ndarray,
     a = np.repeat(pos[robots], k, axis=0)
     b = lat.points[cols]
     ok = found & ~taken[cols]
-    ok[ok] = problem.env.segments_clear(a[ok], b[ok], problem.clearance)
+    clear = clear_by(problem, a[ok], b[ok], deadline)
+    if clear is None:
+        return None
+    ok[ok] = clear
     blocked = np.zeros(len(cols), bool)
     blocked[ok] = _near_segments(problem, a[ok], b[ok], np.repeat(robots, k)[ok], pos, cKDTree(pos))
     if hard is not None and hard.any():
@@ -250,14 +254,14 @@ def _snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float
     for k in (16, 48, 144):  # more candidates where the lattice is coarse next to the formation
         if time.perf_counter() > deadline:
             return None
-        vert = _assign(problem, lat, pos, everyone, np.zeros(lat.n, bool), k=k)
+        vert = _assign(problem, lat, pos, everyone, np.zeros(lat.n, bool), k=k, deadline=deadline)
         if vert is not None:
             break
     via: dict[int, list[np.ndarray]] = {}  # corners a robot in a pocket passes on its way to its vertex
     if vert is None and time.perf_counter() < deadline:
         via = pocket_corners(problem, lat, pos, _REACH * lat.spacing, deadline)
         if via:
-            vert = _assign(problem, lat, _through_corners(pos, via), everyone, np.zeros(lat.n, bool), k=144)
+            vert = _assign(problem, lat, _through_corners(pos, via), everyone, np.zeros(lat.n, bool), k=144, deadline=deadline)
     if vert is None:
         return None
     steps: list[np.ndarray] = []
@@ -298,7 +302,7 @@ def _snap(problem: Problem, lat: Lattice, placement: np.ndarray, deadline: float
         taken = np.zeros(lat.n, bool)
         taken[vert[~todo]] = True
         new = _assign(problem, lat, _through_corners(pos, via), left, taken, hard=~todo,
-                      k=48 if stuck < 2 else 144)
+                      k=48 if stuck < 2 else 144, deadline=deadline)
         if new is None:
             return None
         vert = vert.copy()

@@ -49,10 +49,10 @@ _SHIFTS = (0.0, 1 / 3, 2 / 3)  # shifts of the lattice along each axis, in spaci
 _KEEP = 2  # lattices kept, the roomiest first
 
 
-def meet_lattices(problem: Problem) -> list[tuple[np.ndarray, float, np.ndarray]]:
+def meet_lattices(problem: Problem, deadline: float = math.inf) -> list[tuple[np.ndarray, float, np.ndarray]]:
     """``(offset, spacing, points)`` of the square lattices of step 1 (module docstring),
     the roomiest first: ``points`` are ``offset + spacing * integers`` clear of every
-    wall and obstacle."""
+    wall and obstacle; those tested before ``deadline``."""
     c = problem.separation * SLACK
     lo = problem.clearance
     if problem.width <= 2 * lo or problem.height <= 2 * lo:
@@ -60,6 +60,8 @@ def meet_lattices(problem: Problem) -> list[tuple[np.ndarray, float, np.ndarray]
     found = []
     for fx in _SHIFTS:
         for fy in _SHIFTS:
+            if time.perf_counter() > deadline:
+                break
             x0, y0 = lo + fx * c, lo + fy * c
             gx = x0 + c * np.arange(max(0, int((problem.width - lo - x0) // c) + 1))
             gy = y0 + c * np.arange(max(0, int((problem.height - lo - y0) // c) + 1))
@@ -103,7 +105,7 @@ def meet_plan(problem: Problem, time_limit: float, rng: np.random.Generator,
     t0 = time.perf_counter()
     deadline = min(t0 + time_limit, deadline if deadline is not None else math.inf)
     best = None
-    lattices = meet_lattices(problem)
+    lattices = meet_lattices(problem, deadline)
     for h, eps in FLOW_SETTINGS[:2]:
         for lattice in lattices:
             now = time.perf_counter()

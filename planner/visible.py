@@ -13,7 +13,7 @@ import numpy as np
 
 from .problem import Problem
 
-__all__ = ["Late", "straight_lengths"]
+__all__ = ["Late", "clear_by", "straight_lengths"]
 
 
 class Late(RuntimeError):
@@ -39,6 +39,22 @@ def _visible(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float | N
         aa = np.repeat(part, len(b), axis=0)
         bb = np.tile(b, (len(part), 1))
         out[r : r + rows] = problem.env.segments_clear(aa, bb, problem.clearance).reshape(len(part), len(b))
+    return out
+
+
+#: Segments per call in :func:`clear_by` (10 000 among the 2 000 shelves of a warehouse: 0.25 s)
+_CLEAR_CHUNK = 10_000
+
+
+def clear_by(problem: Problem, a: np.ndarray, b: np.ndarray, deadline: float) -> np.ndarray | None:
+    """``problem.env.segments_clear(a, b, clearance)``, tested in chunks of
+    :data:`_CLEAR_CHUNK` segments; ``None`` when ``deadline`` passes between two."""
+    out = np.zeros(len(a), bool)
+    for r in range(0, len(a), _CLEAR_CHUNK):
+        if time.perf_counter() > deadline:
+            return None
+        out[r : r + _CLEAR_CHUNK] = problem.env.segments_clear(a[r : r + _CLEAR_CHUNK], b[r : r + _CLEAR_CHUNK],
+                                                               problem.clearance)
     return out
 
 

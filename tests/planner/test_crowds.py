@@ -196,7 +196,7 @@ def test_bounds_are_skipped_for_a_plan_found_late(monkeypatch, late):
     p = Problem(40.0, 40.0, (), 1.0, 0.1, np.array([[5.0, 5.0], [5.0, 20.0]]),
                 np.array([[30.0, 5.0], [30.0, 20.0]])).validate()
     monkeypatch.setattr(planning, "_direct", _late_direct(0.3 if late else 0.0))
-    monkeypatch.setattr(planning, "_at_once", lambda problem, a, b: None)  # no shortcut past _direct
+    monkeypatch.setattr(planning, "_at_once", lambda problem, a, b, deadline=None: None)  # no shortcut past _direct
     result, stats = plan(p, PlannerParams(time_limit=0.1 if late else 30.0), np.random.default_rng(0))
     assert stats.found
     assert math.isnan(stats.makespan_lower_bound_s) == late
