@@ -30,11 +30,13 @@ more robots fit at the same spacing; a hexagonal lattice could hold about
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
 from .geometry import Environment
 from .problem import ProblemError
+from .visible import Late
 
 __all__ = ["largest_part", "poisson_disc", "scatter"]
 
@@ -83,12 +85,13 @@ def _within(part):
 
 
 def poisson_disc(env: Environment, region, spacing: float, clearance: float,
-                 rng: np.random.Generator, k: int = _K, part=None) -> np.ndarray:
+                 rng: np.random.Generator, k: int = _K, part=None, deadline: float = math.inf) -> np.ndarray:
     """A saturated Poisson-disc sample ``(N, 2)`` of the free part of ``region``.
 
     ``region`` is ``(x0, y0, x1, y1)``; points lie in it, keep ``clearance``
     from walls and obstacles (exact) and ``spacing`` from each other; with
     ``part`` (a shapely polygon, :func:`largest_part`) only inside it.
+    Raises :class:`planner.visible.Late` when ``deadline`` passes first.
     """
     within = _within(part)
     x0, y0, x1, y1 = (float(v) for v in region)
@@ -154,6 +157,8 @@ def poisson_disc(env: Environment, region, spacing: float, clearance: float,
                 add(p)
                 active.append(len(pts) - 1)
         while active:
+            if time.perf_counter() > deadline:
+                raise Late("scatter: past the deadline")
             # A batch of active points, their candidates tested against the obstacles in one
             # call (one call per point costs about a millisecond on a map of 2000 rectangles);
             # then each point in turn takes its first candidate that keeps the spacing from
@@ -185,7 +190,7 @@ def poisson_disc(env: Environment, region, spacing: float, clearance: float,
 
 
 def scatter(env: Environment, m: int, separation: float, clearance: float, rng: np.random.Generator,
-            *, region=None, field: str = "target", part=None) -> np.ndarray:
+            *, region=None, field: str = "target", part=None, deadline: float = math.inf) -> np.ndarray:
     """``(m, 2)`` placements spread uniformly over the free part of ``region`` (default: all).
 
     Pairwise at least ``separation`` apart and ``clearance`` from walls and
@@ -205,7 +210,7 @@ def scatter(env: Environment, m: int, separation: float, clearance: float, rng: 
     lo = hi = None  # spacings known to give >= m (lo) and < m (hi) points
     best = None
     for _ in range(_RUNS):
-        pts = poisson_disc(env, region, d, clearance, rng, part=part)
+        pts = poisson_disc(env, region, d, clearance, rng, part=part, deadline=deadline)
         n = len(pts)
         if n >= m:
             if best is None or n < len(best):
@@ -229,7 +234,7 @@ def scatter(env: Environment, m: int, separation: float, clearance: float, rng: 
             step = min(step, hi * 0.97)
         d = max(separation, step)
     if best is None:
-        pts = poisson_disc(env, region, separation, clearance, rng, part=part)
+        pts = poisson_disc(env, region, separation, clearance, rng, part=part, deadline=deadline)
         if len(pts) < m:
             raise ProblemError(
                 field,

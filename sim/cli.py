@@ -131,8 +131,8 @@ _SET_HELP = "set a scenario field (dotted path, YAML scalar), e.g. --set robots.
 
 
 def _cmd_plan(args) -> int:
-
     from planner import NoPlanFound
+    from planner.visible import Late
 
     from .execute.legs import plan_legs
     from .output.files import check_out_file
@@ -143,18 +143,22 @@ def _cmd_plan(args) -> int:
     if args.output:
         check_out_file(args.output, "--output")
     overrides = combinations([parse_set(text, many=False) for text in args.set])[0]
-    t0 = time.perf_counter()
+    t0 = getattr(args, "started", None) or time.perf_counter()  # the command's start: imports count
     scenario = read_scenario(args.scenario, overrides=overrides)
     seed = scenario.seed if args.seed is None else args.seed
     rng = scenario.generator(seed)
-    problem, targets = build_legs(scenario, rng)
+    limit = scenario.planner_params(args.time_limit).time_limit
+    try:
+        problem, targets = build_legs(scenario, rng, deadline=t0 + limit)
+    except Late:
+        print(f"no plan: the time limit of {limit:g} s ran out while the robots were being placed", file=sys.stderr)
+        return EXIT_FAIL
     out = Path(args.output) if args.output else Path("media") / f"{scenario.name}-plan.json"
     if not args.output:
         check_out_file(out, "--output")
     params = scenario.planner_params(args.time_limit, spent=time.perf_counter() - t0)
     mode = "auto" if params.auto else f"g={params.g} q={params.q}"
-    print(f"{scenario.name} (seed {seed}): {problem.m} robots, "
-          f"{scenario.describe()}, {mode}")
+    print(f"{scenario.name} (seed {seed}): {problem.m} robots, {scenario.describe()}, {mode}")
     try:
         result, stats, _ = plan_legs(problem, targets, params, rng, holds=[t.hold for t in scenario.legs],
                                      labels=[t.describe() for t in scenario.legs])
@@ -185,6 +189,7 @@ def _cmd_run(args) -> int:
         plan_path=args.plan,
         time_limit=args.time_limit,
         overrides=combinations([parse_set(text, many=False) for text in args.set])[0],
+        started=getattr(args, "started", None),
     )
     from .output.report import verdict
 
@@ -315,6 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return its exit code (see the module docstring)."""
+    started = time.perf_counter()  # a time limit covers the whole command, its imports too
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv
     from .stops import Stopped, stop_handlers
@@ -324,6 +330,7 @@ def main(argv: list[str] | None = None) -> int:
         with stop_handlers():
             parser = build_parser()
             args = parser.parse_args(argv)
+            args.started = started
             debug = debug or bool(getattr(args, "debug", False))
             return args.func(args)
     except SystemExit:  # --help, --version, argument errors: before the error classes are imported

@@ -16,6 +16,7 @@ error or an interrupt leaves the previous run's files as they were.
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -27,6 +28,7 @@ from planner import NoPlanFound, Plan, PlanStats, min_clearance
 from planner.bounds import lower_bounds
 from planner.inputfile import echo_path
 from planner.plan import note_ignored, read_plan_file
+from planner.visible import Late
 
 from .errors import InputError
 from .execute.budget import check_physics_budget, check_validator_budget
@@ -98,8 +100,9 @@ def run_scenario(
     plan_path: str | Path | None = None,
     time_limit: float | None = None,
     progress: bool | None = None,
-    out=sys.stdout,
+    out="stdout",
     overrides: dict | None = None,
+    started: float | None = None,
 ) -> RunResult:
     """Plan or load, validate, execute, render and write ``DIR/NAME.json``.
 
@@ -107,10 +110,13 @@ def run_scenario(
     validator finds it below the margin (that is how a regression test
     proves a collision is seen); its recorded seed rebuilds the same
     problem unless ``seed`` is given.  ``overrides`` set scenario fields
-    (``{"robots.margin": 0.2}``, as ``--set``).
+    (``{"robots.margin": 0.2}``, as ``--set``).  ``started``: when the run
+    began (``time.perf_counter``; default now), from which the planner's time
+    limit counts, the placing of the robots included.
     """
     out_dir = check_out_dir(out_dir)
-    t0 = time.perf_counter()
+    out = sys.stdout if isinstance(out, str) and out == "stdout" else out  # the stream of the call, not of the import
+    t0 = time.perf_counter() if started is None else started
     scenario = read_scenario(path, overrides=overrides)
     loaded = None
     if plan_path is not None:
@@ -119,11 +125,15 @@ def run_scenario(
         seed = recorded.get("seed") if seed is None else seed
     seed = scenario.seed if seed is None else seed
     rng = scenario.generator(seed)
-    problem, targets = build_legs(scenario, rng)
-    leg_times = None
     name = scenario.name
     outs = OutputSet(out_dir, name)
     outs.check()
+    try:
+        problem, targets = build_legs(scenario, rng, deadline=t0 + scenario.planner_params(time_limit).time_limit
+                                      if loaded is None else math.inf)
+    except Late:
+        return _late(scenario, seed, scenario.planner_params(time_limit).time_limit, outs, out)
+    leg_times = None
     if loaded is not None:
         loaded = _check_loaded(loaded, problem, scenario, str(plan_path))
     say = (lambda *a: print(*a, file=out)) if out is not None else (lambda *a: None)
@@ -268,6 +278,21 @@ def _loaded_stats(p: Plan, problem) -> PlanStats:
         stats.graphs, stats.connections = p.stats.graphs, p.stats.connections
     stats.makespan_lower_bound_s, stats.path_length_lower_bound = lower_bounds(problem)
     return stats
+
+
+def _late(scenario, seed: int, limit: float, outs: OutputSet, out) -> RunResult:
+    """A run whose time limit ran out while its robots were being placed: exit 1, and a
+    report that says so (no plan, no physics, no media)."""
+    error = f"the time limit of {limit:g} s ran out while the robots were being placed"
+    report = {"scenario": scenario.name, "seed": seed, "robots": scenario.count, "scenario_file": str(scenario.path),
+              "plan": {"found": False, "error": error}, "sim": None, "media": [], "ok": False}
+    with outs:
+        _write_report(outs.path(f"{scenario.name}.json"), report)
+        outs.commit()
+    if out is not None:
+        print(f"{scenario.name} (seed {seed}): no plan: {error}", file=out)
+        print(f"  wrote {outs.final(scenario.name + '.json')}", file=out)
+    return RunResult(report, 1, outs.final(f"{scenario.name}.json"))
 
 
 def _write_report(path: Path, report: dict) -> Path:

@@ -5,6 +5,8 @@ Every draw comes from the run's one generator, in a fixed order (see :func:`buil
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from planner.formations import place_formation
@@ -54,12 +56,14 @@ def build_problem(scenario: Scenario, rng: np.random.Generator) -> Problem:
     return build_legs(scenario, rng)[0]
 
 
-def build_legs(scenario: Scenario, rng: np.random.Generator) -> tuple[Problem, tuple[np.ndarray, ...]]:
+def build_legs(scenario: Scenario, rng: np.random.Generator,
+               deadline: float = math.inf) -> tuple[Problem, tuple[np.ndarray, ...]]:
     """The run's problem (start -> last target) and every target placement in order.
 
     Draws from ``rng`` in a fixed order: random obstacles, then each
     placement from the start on (a single-target scenario draws exactly as
-    :func:`build_problem` always has).
+    :func:`build_problem` always has).  A scatter still drawing at
+    ``deadline`` (the run's time limit) raises :class:`planner.visible.Late`.
     """
     from .placements import make_shape, uses_rng
 
@@ -116,7 +120,7 @@ def build_legs(scenario: Scenario, rng: np.random.Generator) -> tuple[Problem, t
                 if "part" not in shell.__dict__:  # the start and every target share it
                     shell.__dict__["part"] = largest_part(shell)
                 pts = scatter(shell.env, s.count, sep, clearance, rng, region=spec.region, field=key,
-                              part=shell.__dict__["part"])
+                              part=shell.__dict__["part"], deadline=deadline)
                 check_placement(shell, pts, key)
             else:
                 known = shapes.get(key)

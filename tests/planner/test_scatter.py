@@ -185,3 +185,22 @@ def test_scatter_keeps_to_the_largest_connected_part():
     assert pdist(kept).min() >= SEP and shell.env.point_clearance(kept).min() >= CLEAR
     open_world = Problem(W, H, tuple(walls[:1]), 1.0, 0.1, np.zeros((0, 2)), np.zeros((0, 2)))
     assert largest_part(open_world) is None  # one component: nothing to restrict
+
+
+def test_scatter_stops_at_its_deadline_and_draws_the_same_without_one():
+    """A deadline already past raises Late before the sample grows; a far one changes nothing."""
+    import time
+
+    import numpy as np
+    import pytest
+
+    from planner.geometry import Environment
+    from planner.scatter import scatter
+    from planner.visible import Late
+
+    env = Environment.build(40.0, 40.0, ())
+    with pytest.raises(Late):
+        scatter(env, 50, 2.1, 1.1, np.random.default_rng(3), deadline=time.perf_counter() - 1.0)
+    a = scatter(env, 50, 2.1, 1.1, np.random.default_rng(3))
+    b = scatter(env, 50, 2.1, 1.1, np.random.default_rng(3), deadline=time.perf_counter() + 60.0)
+    assert np.array_equal(a, b)
