@@ -218,9 +218,9 @@ def _off_obstacles(problem: Problem, x: np.ndarray, eps: float) -> np.ndarray:
     out = np.flatnonzero(~env.points_clear(x, c))  # the indexed exact test first
     if len(out) == 0:
         return x
-    clr = np.full(len(x), c)
-    clr[out] = env.point_clearance(x[out])
-    near = out[(clr[out] < c) & (clr[out] > 0)]
+    clr = env.point_clearance(x[out])
+    inside = (clr < c) & (clr > 0)
+    near, clr = out[inside], clr[inside]
     if len(near) == 0:
         return x
     p = x[near]
@@ -231,7 +231,7 @@ def _off_obstacles(problem: Problem, x: np.ndarray, eps: float) -> np.ndarray:
     ok = norm > 0.5  # the wall or an obstacle, not a ridge between two
     x = x.copy()
     want = c + eps
-    x[near[ok]] += ((want - clr[near[ok]]) / norm[ok])[:, None] * grad[ok]
+    x[near[ok]] += ((want - clr[ok]) / norm[ok])[:, None] * grad[ok]
     return x
 
 

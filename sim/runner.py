@@ -115,7 +115,7 @@ def run_scenario(
     limit counts, the placing of the robots included.
     """
     out_dir = check_out_dir(out_dir)
-    out = sys.stdout if isinstance(out, str) and out == "stdout" else out  # the stream of the call, not of the import
+    out = sys.stdout if out == "stdout" else out  # the stream of the call, not of the import
     t0 = time.perf_counter() if started is None else started
     scenario = read_scenario(path, overrides=overrides)
     loaded = None
@@ -128,11 +128,11 @@ def run_scenario(
     name = scenario.name
     outs = OutputSet(out_dir, name)
     outs.check()
+    limit = scenario.planner_params(time_limit).time_limit
     try:
-        problem, targets = build_legs(scenario, rng, deadline=t0 + scenario.planner_params(time_limit).time_limit
-                                      if loaded is None else math.inf)
+        problem, targets = build_legs(scenario, rng, deadline=t0 + limit if loaded is None else math.inf)
     except Late:
-        return _late(scenario, seed, scenario.planner_params(time_limit).time_limit, outs, out)
+        return _late(scenario, seed, limit, outs, out)
     leg_times = None
     if loaded is not None:
         loaded = _check_loaded(loaded, problem, scenario, str(plan_path))
