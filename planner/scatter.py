@@ -162,7 +162,8 @@ def poisson_disc(env: Environment, region, spacing: float, clearance: float,
             # A batch of active points, their candidates tested against the obstacles in one
             # call (one call per point costs about a millisecond on a map of 2000 rectangles);
             # then each point in turn takes its first candidate that keeps the spacing from
-            # every point so far, or leaves the active list.
+            # every point so far (the points before the batch were tested with the rest), or
+            # leaves the active list.
             pick = rng.choice(len(active), size=min(len(active), _BATCH), replace=False)
             base = arr[np.asarray(active)[pick]]
             rad = np.sqrt(rng.uniform(d2, _RING**2 * d2, size=(len(pick), k)))
@@ -174,10 +175,12 @@ def poisson_disc(env: Environment, region, spacing: float, clearance: float,
             good[good] = env.points_clear(flat[good], clearance)
             good = good.reshape(len(pick), k)
             done = []
+            before = len(pts)  # the candidates keep the spacing from these; only the batch's own points are left
             for row, j in enumerate(pick):
                 cand = c[row][good[row]]
-                if len(cand):
-                    cand = cand[far(cand)]
+                if len(cand) and len(pts) > before:
+                    new = arr[before : len(pts)]
+                    cand = cand[~np.any(((new[None, :, :] - cand[:, None, :]) ** 2).sum(-1) < d2, axis=1)]
                 if len(cand):
                     add(cand[0])
                     active.append(len(pts) - 1)
